@@ -1,0 +1,1 @@
+"""island_mapping."""

@@ -1,0 +1,1 @@
+"""island_msgs_py."""

@@ -1,0 +1,227 @@
+"""Shared data types of the islands-of-reliability map (numpy only, no ROS).
+
+The global map of Simhon and Dudek (eq. 1) is M = {V, E}: a node (an *island*) holds a local
+line-segment model L in its own frame and the model type T that accepted it; an edge holds the
+control strategy S that drives the robot from the source island's origin to the target island's
+origin, and a weight W.
+
+Conventions used everywhere in the project:
+- poses are (x [m], y [m], theta [rad]) with theta wrapped to (-pi, pi];
+- line segments are rows (x1, y1, x2, y2) [m] of an (N, 4) float array;
+- control strategies use the paper's Table 1 units: Go in centimetres, Rot in degrees
+  (counter-clockwise, in [0, 360)).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class IslandTypeError(ValueError):
+    """A value of a shared type is malformed (the message names the field and the problem)."""
+
+
+def wrap_angle(theta_rad: float) -> float:
+    """Wrap an angle [rad] to (-pi, pi]."""
+    wrapped = math.atan2(math.sin(theta_rad), math.cos(theta_rad))
+    return math.pi if wrapped == -math.pi else wrapped
+
+
+def _require_finite(name: str, *values: float) -> None:
+    for v in values:
+        if not math.isfinite(v):
+            raise IslandTypeError(f"{name}: expected a finite number, got {v!r}")
+
+
+@dataclass(frozen=True)
+class Pose2D:
+    """A planar pose: x, y [m] and heading theta [rad]."""
+
+    x: float
+    y: float
+    theta: float
+
+    def __post_init__(self) -> None:
+        _require_finite("Pose2D", self.x, self.y, self.theta)
+
+    def as_array(self) -> FloatArray:
+        """(3,) array [x m, y m, theta rad]."""
+        return np.array([self.x, self.y, self.theta], dtype=np.float64)
+
+    @staticmethod
+    def from_array(a: npt.ArrayLike) -> Pose2D:
+        v = np.asarray(a, dtype=np.float64).reshape(-1)
+        if v.shape != (3,):
+            raise IslandTypeError(f"Pose2D: expected 3 values (x, y, theta), got {v.shape[0]}")
+        return Pose2D(float(v[0]), float(v[1]), float(v[2]))
+
+    def compose(self, other: Pose2D) -> Pose2D:
+        """self (+) other: `other` expressed in this pose's frame, returned in the parent frame."""
+        c, s = math.cos(self.theta), math.sin(self.theta)
+        return Pose2D(
+            self.x + c * other.x - s * other.y,
+            self.y + s * other.x + c * other.y,
+            wrap_angle(self.theta + other.theta),
+        )
+
+    def inverse(self) -> Pose2D:
+        c, s = math.cos(self.theta), math.sin(self.theta)
+        return Pose2D(-c * self.x - s * self.y, s * self.x - c * self.y, wrap_angle(-self.theta))
+
+    def relative_to(self, base: Pose2D) -> Pose2D:
+        """This pose expressed in the frame of `base` (base^-1 (+) self)."""
+        return base.inverse().compose(self)
+
+
+class PrimitiveKind(str, Enum):
+    """A control-strategy step: drive straight (Go, cm) or rotate in place (Rot, deg CCW)."""
+
+    GO = "Go"
+    ROT = "Rot"
+
+
+@dataclass(frozen=True)
+class StrategyPrimitive:
+    """One step of a control strategy in the paper's units: Go [cm] or Rot [deg, CCW, 0-360)."""
+
+    kind: PrimitiveKind
+    value: int
+
+    def __post_init__(self) -> None:
+        if self.kind is PrimitiveKind.GO and self.value < 0:
+            raise IslandTypeError(f"Go distance must be >= 0 cm, got {self.value}")
+        if self.kind is PrimitiveKind.ROT and not 0 <= self.value < 360:
+            raise IslandTypeError(f"Rot angle must be in [0, 360) deg, got {self.value}")
+
+    def __str__(self) -> str:
+        return f"{self.kind.value} {self.value}"
+
+    @property
+    def metres(self) -> float:
+        """Go distance [m] (0 for a rotation)."""
+        return self.value / 100.0 if self.kind is PrimitiveKind.GO else 0.0
+
+    @property
+    def radians(self) -> float:
+        """Rotation [rad] in (-pi, pi] (0 for a Go); Rot 270 is a quarter turn clockwise."""
+        return wrap_angle(math.radians(self.value)) if self.kind is PrimitiveKind.ROT else 0.0
+
+
+_PRIMITIVE_RE = re.compile(r"^\s*(Go|Rot)\s+(-?\d+)\s*$", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class ControlStrategy:
+    """An ordered list of primitives, printed like the paper's Table 1: `Go 125, Rot 270, Go 652`."""
+
+    steps: tuple[StrategyPrimitive, ...] = ()
+
+    def __str__(self) -> str:
+        return ", ".join(str(s) for s in self.steps)
+
+    @staticmethod
+    def parse(text: str) -> ControlStrategy:
+        """Parse `Go 125, Rot 270, Go 652`; an empty string is the empty strategy."""
+        if not text.strip():
+            return ControlStrategy(())
+        steps = []
+        for part in text.split(","):
+            m = _PRIMITIVE_RE.match(part)
+            if m is None:
+                raise IslandTypeError(f"control strategy: cannot parse step {part.strip()!r}")
+            kind = PrimitiveKind.GO if m.group(1).lower() == "go" else PrimitiveKind.ROT
+            steps.append(StrategyPrimitive(kind, int(m.group(2))))
+        return ControlStrategy(tuple(steps))
+
+    @property
+    def length_m(self) -> float:
+        """Total Go distance [m]."""
+        return sum(s.metres for s in self.steps)
+
+
+class ModelType(str, Enum):
+    """The model types T_i that can accept an island (eq. 3)."""
+
+    LINE = "line"  # the paper's sonar line-model measure R (eqs. 4-12)
+    FISHER = "fisher"  # Fisher information / Cramer-Rao bound (Censi 2007)
+
+
+def as_segments(a: npt.ArrayLike, name: str = "segments") -> FloatArray:
+    """Validate and return an (N, 4) float64 array of finite segments (x1, y1, x2, y2) [m]."""
+    arr = np.asarray(a, dtype=np.float64)
+    if arr.size == 0:
+        return np.zeros((0, 4), dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 4:
+        raise IslandTypeError(f"{name}: expected an (N, 4) array, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.argwhere(~np.isfinite(arr))[0][0])
+        raise IslandTypeError(f"{name}: segment {bad} has a NaN or infinite coordinate")
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class LineModel:
+    """A local metric map: line segments (N, 4) [m] in the island's own frame."""
+
+    segments: FloatArray = field(default_factory=lambda: np.zeros((0, 4)))
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "segments", as_segments(self.segments, "LineModel.segments"))
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, LineModel) and np.array_equal(self.segments, other.segments)
+
+    def __len__(self) -> int:
+        return int(self.segments.shape[0])
+
+
+@dataclass(frozen=True)
+class Island:
+    """A node v_i = {L, T} of the global map, plus what the builder knew when it accepted it.
+
+    `origin_truth` is the simulator's true pose of the island origin, kept for evaluation only
+    (None on real data); no algorithm may use it.
+    """
+
+    id: int
+    model: LineModel
+    model_type: ModelType
+    r: float  # best normalized measure max_i(R_i / T_i) at acceptance
+    built_at_s: float  # time of acceptance [s] (sim or log time)
+    frame_id: str = ""
+    origin_truth: Pose2D | None = None
+
+    def __post_init__(self) -> None:
+        if self.id < 0:
+            raise IslandTypeError(f"island id must be >= 0, got {self.id}")
+        _require_finite(f"island {self.id} r", self.r)
+        _require_finite(f"island {self.id} built_at_s", self.built_at_s)
+        if not self.frame_id:
+            object.__setattr__(self, "frame_id", f"island_{self.id}")
+
+
+@dataclass(frozen=True)
+class Edge:
+    """An edge e = {v_i v_j, S, W}: the strategy from source's origin to target's origin."""
+
+    source: int
+    target: int
+    strategy: ControlStrategy
+    weight: float  # cost used for planning: length travelled [m] plus expected error [m]
+    length_m: float = 0.0
+    expected_error_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.source == self.target:
+            raise IslandTypeError(f"edge {self.source}->{self.target}: an edge to itself")
+        _require_finite(f"edge {self.source}->{self.target} weight", self.weight)
+        if self.weight < 0:
+            raise IslandTypeError(f"edge {self.source}->{self.target}: negative weight")
