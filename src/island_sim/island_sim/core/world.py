@@ -37,6 +37,12 @@ class World:
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
 
+    def raycast(
+        self, origins: npt.ArrayLike, angles_rad: npt.ArrayLike, max_range_m: float = np.inf
+    ) -> RayHits:
+        """First hits of rays from `origins` (M, 2) [m] along `angles_rad` (M,); see `raycast`."""
+        return raycast(self.segments, origins, angles_rad, max_range_m)
+
 
 @dataclass(frozen=True)
 class RayHits:

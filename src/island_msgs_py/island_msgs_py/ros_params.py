@@ -1,0 +1,60 @@
+"""Declare ROS parameters from the core's frozen config dataclasses (the single source of defaults).
+
+A config dataclass field `beam_width_deg: float = field(default=25.0, metadata={"help": "..."})`
+becomes the parameter `<prefix>.beam_width_deg` with that default and description.
+Nested dataclass fields become nested dotted names; enum fields are declared as their string value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+from enum import Enum
+from typing import Any, TypeVar
+
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.node import Node
+
+T = TypeVar("T")
+
+
+def ensure_ros_env() -> None:
+    """Keep DDS discovery on this machine unless the user set otherwise (call before rclpy.init)."""
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    os.environ.setdefault("AMENT_PREFIX_PATH", sys.prefix)
+
+
+def _ros_value(value: Any) -> Any:
+    if isinstance(value, Enum):
+        return value.value
+    if isinstance(value, tuple):
+        return list(value)
+    return value
+
+
+def declare_config(node: Node, prefix: str, default: T) -> T:
+    """Declare `<prefix>.<field>` for every field of the dataclass instance `default`.
+
+    Returns a new instance holding the values the node was given (overrides, YAML files) or the
+    defaults. Values are validated by the dataclass's own __post_init__, if it has one.
+    """
+    if not dataclasses.is_dataclass(default) or isinstance(default, type):
+        raise TypeError("declare_config needs a dataclass instance")
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(default):
+        current = getattr(default, f.name)
+        name = f"{prefix}.{f.name}" if prefix else f.name
+        if dataclasses.is_dataclass(current) and not isinstance(current, type):
+            values[f.name] = declare_config(node, name, current)
+            continue
+        desc = ParameterDescriptor(description=str(f.metadata.get("help", "")))
+        got = node.declare_parameter(name, _ros_value(current), desc).value
+        if isinstance(current, Enum):
+            got = type(current)(got)
+        elif isinstance(current, tuple):
+            got = tuple(got)
+        elif isinstance(current, float) and isinstance(got, int):
+            got = float(got)
+        values[f.name] = got
+    return dataclasses.replace(default, **values)  # type: ignore[type-var]
