@@ -1,0 +1,815 @@
+"""The island builder: where to build islands of reliability (paper sections 5 and 8.2, eq. 3).
+
+Pure decision logic (numpy only, no ROS). The node feeds it odometry, sonar scans and the hall
+follower's executed strategy, and asks it once per scan what to do (`command`):
+
+- FOLLOW: let the hall follower drive;
+- DRIVE(v, w): the builder drives (the star routine that collects data at four corners).
+
+and which events happened (attempt started, failed at once, island accepted, attempt dismissed).
+
+The decisions (see docs/builder.md):
+
+- epsilon, the estimated accumulated error since the robot last knew where it was, is
+  sqrt(largest eigenvalue of the xy block of (Sigma_now - Sigma_anchor)) where Sigma is the
+  odometry's propagated pose covariance and Sigma_anchor its value when the last island's origin
+  was anchored.
+- When epsilon > E_min the robot is "lost" and attempts an island. A quick check fits lines to
+  the points seen over the last metres of travel and evaluates every model type at the robot; if
+  even a generous fraction of the eq. 3 bound is out of reach the attempt fails at once (a dot in
+  the paper's Fig. 4a) and the robot keeps following, retrying after `retry_distance_m`.
+- Otherwise the star: the attempt pose becomes the island origin (0, 0, 0); the robot drives legs
+  of up to `leg_length_m` ahead, left, behind and right of it (each leg shortened so it stays in
+  free space as the sonar sees it, skipped if too short), reversing back to the centre after each
+  leg, accumulating scan points in the origin frame by odometry. After each leg it fits lines and
+  evaluates every model type at the origin: accept when max_i(R_i / T_i) > E_min / epsilon
+  (eq. 3); dismiss once `dismiss_min_legs` legs are done and the best normalized measure is below
+  `dismiss_fraction` of the bound (a partial star); a full star that never reached the bound is
+  dismissed too. Either way the robot faces the origin's heading again before handing back, so
+  the hall follower's strategy continues from where it was.
+- The first island is built at the start pose (the paper's robot begins at a starting node) with
+  the full star and accepted whatever its measure (`first_island_min_measure` can demand more).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+import numpy as np
+import numpy.typing as npt
+from island_msgs_py.types import (
+    ControlStrategy,
+    Edge,
+    FloatArray,
+    Island,
+    LineModel,
+    ModelType,
+    Pose2D,
+    wrap_angle,
+)
+
+from island_mapping.core.fisher import FisherConfig
+from island_mapping.core.lines import LineFitConfig, fit_lines
+from island_mapping.core.measure import MeasureConfig, evaluate_models
+
+# A covariance difference below this is numerical noise [m^2].
+_COV_EPS_M2 = 1e-12
+
+
+class BuilderError(ValueError):
+    """Bad input to the island builder (the message names the argument and the problem)."""
+
+
+@dataclass(frozen=True)
+class StarConfig:
+    """The star routine that collects data at four corners around the island origin."""
+
+    leg_length_m: float = field(
+        default=1.2,
+        metadata={
+            "help": "longest leg from the origin to a corner (ahead, left, behind, right) [m]"
+        },
+    )
+    min_leg_m: float = field(
+        default=0.3,
+        metadata={"help": "legs the free space allows only shorter than this are skipped [m]"},
+    )
+    clearance_m: float = field(
+        default=0.7,
+        metadata={"help": "a leg stops this far (robot centre) before the nearest echo ahead [m]"},
+    )
+    ahead_halfwidth_deg: float = field(
+        default=25.0,
+        metadata={"help": "beams within this bearing of the heading count as ahead [deg]"},
+    )
+    speed_mps: float = field(default=0.3, metadata={"help": "driving speed on the legs [m/s]"})
+    turn_rate_radps: float = field(
+        default=0.8, metadata={"help": "largest turn rate when rotating in place [rad/s]"}
+    )
+    heading_gain_per_s: float = field(
+        default=2.0, metadata={"help": "proportional gain of heading control [1/s]"}
+    )
+    position_tol_m: float = field(
+        default=0.03, metadata={"help": "a leg end is reached within this distance [m]"}
+    )
+    heading_tol_deg: float = field(
+        default=2.0, metadata={"help": "a rotation is done within this heading error [deg]"}
+    )
+
+    def __post_init__(self) -> None:
+        for name in (
+            "leg_length_m",
+            "min_leg_m",
+            "clearance_m",
+            "ahead_halfwidth_deg",
+            "speed_mps",
+            "turn_rate_radps",
+            "heading_gain_per_s",
+            "position_tol_m",
+            "heading_tol_deg",
+        ):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise BuilderError(f"StarConfig.{name}: expected a finite number > 0, got {v!r}")
+        if self.min_leg_m > self.leg_length_m:
+            raise BuilderError(
+                f"StarConfig.min_leg_m ({self.min_leg_m}) exceeds leg_length_m "
+                f"({self.leg_length_m})"
+            )
+
+
+@dataclass(frozen=True)
+class BuilderConfig:
+    """Eq. 3 and the attempt rules of the island builder."""
+
+    e_min_m: float = field(
+        default=0.3,
+        metadata={"help": "E_min: accumulated odometry error bound that triggers an attempt [m]"},
+    )
+    threshold_line: float = field(
+        default=0.25,
+        metadata={"help": "T_line: acceptance threshold of the line-model measure R [-]"},
+    )
+    threshold_fisher: float = field(
+        default=0.4, metadata={"help": "T_fisher: acceptance threshold of the Fisher score [-]"}
+    )
+    bound_floor: float = field(
+        default=0.6,
+        metadata={
+            "help": "the eq. 3 bound E_min/epsilon never drops below this, so a very lost "
+            "robot still refuses featureless places (0 = the paper's eq. 3 exactly) [-]"
+        },
+    )
+    quick_reject_fraction: float = field(
+        default=0.3,
+        metadata={
+            "help": "the attempt fails at once when the quick check's best normalized "
+            "measure is below this fraction of the bound [-]"
+        },
+    )
+    quick_history_m: float = field(
+        default=1.0,
+        metadata={"help": "the quick check uses scan points seen over this last path length [m]"},
+    )
+    retry_distance_m: float = field(
+        default=1.0,
+        metadata={
+            "help": "path length to follow after a failed or dismissed attempt before "
+            "the next one [m]"
+        },
+    )
+    dismiss_min_legs: int = field(
+        default=2, metadata={"help": "legs of the star done before an attempt may be dismissed [-]"}
+    )
+    dismiss_fraction: float = field(
+        default=0.5,
+        metadata={
+            "help": "dismiss when the best normalized measure so far is below this "
+            "fraction of the bound [-]"
+        },
+    )
+    complete_star: bool = field(
+        default=True,
+        metadata={
+            "help": "once the measure passes eq. 3, still drive the remaining legs so the "
+            "island's model is complete (the paper's Fig. 4a shows full stars for built "
+            "islands); false = accept at once [bool]"
+        },
+    )
+    build_first_island: bool = field(
+        default=True,
+        metadata={"help": "build island 0 at the start pose before following (paper 8.2) [bool]"},
+    )
+    first_island_min_measure: float = field(
+        default=0.0,
+        metadata={
+            "help": "island 0 is accepted when its best normalized measure exceeds this "
+            "(0 = always: the start is a node by definition) [-]"
+        },
+    )
+    star: StarConfig = field(
+        default_factory=StarConfig, metadata={"help": "the four-corner star routine"}
+    )
+    line_fit: LineFitConfig = field(
+        default_factory=LineFitConfig, metadata={"help": "line fitting of the collected points"}
+    )
+    measure: MeasureConfig = field(
+        default_factory=MeasureConfig, metadata={"help": "the line-model measure R (T_line)"}
+    )
+    fisher: FisherConfig = field(
+        default_factory=FisherConfig, metadata={"help": "the Fisher-information score (T_fisher)"}
+    )
+
+    def __post_init__(self) -> None:
+        for name in ("e_min_m", "threshold_line", "threshold_fisher", "quick_history_m"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise BuilderError(f"BuilderConfig.{name}: expected a finite number > 0, got {v!r}")
+        for name in (
+            "bound_floor",
+            "quick_reject_fraction",
+            "retry_distance_m",
+            "dismiss_fraction",
+            "first_island_min_measure",
+        ):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise BuilderError(
+                    f"BuilderConfig.{name}: expected a finite number >= 0, got {v!r}"
+                )
+        if not 1 <= self.dismiss_min_legs <= 4:
+            raise BuilderError(
+                f"BuilderConfig.dismiss_min_legs: expected 1..4, got {self.dismiss_min_legs}"
+            )
+
+    def threshold(self, model_type: ModelType) -> float:
+        """T_i of a model type."""
+        return self.threshold_line if model_type is ModelType.LINE else self.threshold_fisher
+
+
+class RelativeCovariance:
+    """Covariance of the odometric pose relative to an anchor pose, from the odometry covariance.
+
+    The odometry publishes Sigma, the covariance of its pose in the odometry frame, propagated
+    step by step as Sigma_k = F_k Sigma_{k-1} F_k^T + Q_k (F_k the Jacobian of the motion
+    increment, Q_k the increment's noise). Simply subtracting Sigma_anchor would also count how
+    the heading uncertainty the robot already had at the anchor swings the position (that is
+    global error, not error relative to the island). So this tracker recovers each step's injected
+    noise Q_k = Sigma_k - F_k Sigma_{k-1} F_k^T from consecutive messages and propagates
+    P_k = F_k P_{k-1} F_k^T + Q_k with P = 0 at the anchor: the covariance of the current pose
+    given the anchor pose exactly, i.e. the error accumulated since the robot last knew where it
+    was. epsilon = sqrt(largest eigenvalue of P's xy block) [m].
+    """
+
+    def __init__(self) -> None:
+        self._prev_pose: Pose2D | None = None
+        self._prev_cov = np.zeros((3, 3))
+        self.p = np.zeros((3, 3))
+
+    def reset(self) -> None:
+        """The robot knows where it is now (an island origin): P = 0."""
+        self.p = np.zeros((3, 3))
+
+    def update(self, pose: Pose2D, cov: FloatArray) -> None:
+        """Feed one odometry message (pose [m, rad], 3x3 covariance)."""
+        if self._prev_pose is not None:
+            prev = self._prev_pose
+            dth = wrap_angle(pose.theta - prev.theta)
+            ds = math.hypot(pose.x - prev.x, pose.y - prev.y)
+            # Signed travel along the mid heading (reversing gives ds < 0).
+            mid = prev.theta + 0.5 * dth
+            if (pose.x - prev.x) * math.cos(mid) + (pose.y - prev.y) * math.sin(mid) < 0:
+                ds = -ds
+            f = np.array(
+                [[1.0, 0.0, -ds * math.sin(mid)], [0.0, 1.0, ds * math.cos(mid)], [0.0, 0.0, 1.0]]
+            )
+            q = cov - f @ self._prev_cov @ f.T
+            q = 0.5 * (q + q.T)
+            # Keep the injected noise positive semi-definite (numerical noise, message loss).
+            w, v = np.linalg.eigh(q)
+            q = (v * np.clip(w, 0.0, None)) @ v.T
+            self.p = f @ self.p @ f.T + q
+            self.p = 0.5 * (self.p + self.p.T)
+        self._prev_pose = pose
+        self._prev_cov = cov.copy()
+
+    @property
+    def epsilon_m(self) -> float:
+        """sqrt of the largest eigenvalue of the relative xy covariance [m]."""
+        lam = float(np.max(np.linalg.eigvalsh(self.p[:2, :2])))
+        return math.sqrt(lam) if lam > _COV_EPS_M2 else 0.0
+
+
+def eq3_bound(cfg: BuilderConfig, epsilon_m: float) -> float:
+    """The right side of eq. 3, E_min / epsilon, floored at `bound_floor` [-]."""
+    if epsilon_m <= 0:
+        return math.inf
+    return max(cfg.e_min_m / epsilon_m, cfg.bound_floor)
+
+
+def normalized_measures(
+    cfg: BuilderConfig, measures: Mapping[ModelType, float]
+) -> tuple[ModelType, float]:
+    """(argmax, max) of R_i / T_i over the model types; NaN measures count as 0."""
+    best_t, best = ModelType.LINE, -math.inf
+    for t in ModelType:
+        r = float(measures.get(t, 0.0))
+        v = r / cfg.threshold(t) if math.isfinite(r) else 0.0
+        if v > best:
+            best_t, best = t, v
+    return best_t, max(best, 0.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Measuring a point cloud: fit a line model, evaluate every model type at a point.
+
+
+FitFn = Callable[[FloatArray], LineModel]
+EvaluateFn = Callable[[FloatArray, FloatArray], Mapping[ModelType, float]]
+
+
+class CoreMeasures:
+    """The project's line fitting (core.lines) and model-type evaluation (core.measure)."""
+
+    def __init__(self, config: BuilderConfig) -> None:
+        self._config = config
+
+    def fit(self, points: FloatArray) -> LineModel:
+        """Line model of (N, 2) points [m]."""
+        return fit_lines(points, self._config.line_fit)
+
+    def evaluate(self, segments: FloatArray, point: FloatArray) -> Mapping[ModelType, float]:
+        """{model type: measure} of segments (N, 4) [m] at point (2,) [m]."""
+        return evaluate_models(segments, point, self._config.measure, self._config.fisher)
+
+
+# ---------------------------------------------------------------------------------------------
+# Commands and events.
+
+
+class CommandMode(StrEnum):
+    FOLLOW = "follow"  # the hall follower drives
+    DRIVE = "drive"  # the builder drives: publish (v, w)
+
+
+class EventKind(StrEnum):
+    ATTEMPT_STARTED = "attempt_started"
+    ATTEMPT_FAILED_AT_ONCE = "attempt_failed_at_once"
+    ISLAND_ACCEPTED = "island_accepted"
+    ATTEMPT_DISMISSED = "attempt_dismissed"
+    HANDED_BACK = "handed_back"  # the robot is back at the origin facing theta 0
+
+
+@dataclass(frozen=True)
+class BuilderEvent:
+    """Something the builder decided.
+
+    anchor_odom: the attempt pose in the odometry frame; legs_m: the legs driven so far as
+    (bearing in the origin frame [rad], length [m]); measure: the best normalized measure
+    max_i(R_i/T_i) so far; bound: E_min/epsilon at the attempt; partial: a dismissed star that
+    did not do all four legs.
+    """
+
+    kind: EventKind
+    t_s: float
+    odom_pose: Pose2D
+    epsilon_m: float
+    anchor_odom: Pose2D | None = None
+    measure: float = 0.0
+    bound: float = 0.0
+    legs_m: tuple[tuple[float, float], ...] = ()
+    partial: bool = False
+    island: Island | None = None
+    edge: Edge | None = None
+    accepted_island_id: int | None = None
+
+
+@dataclass(frozen=True)
+class BuilderCommand:
+    """What to do now: FOLLOW, or DRIVE with v [m/s] and w [rad/s]; events since the last call."""
+
+    mode: CommandMode
+    v_mps: float = 0.0
+    w_radps: float = 0.0
+    events: tuple[BuilderEvent, ...] = ()
+
+
+class _State(StrEnum):
+    WAITING = "waiting"  # no odometry/scan yet
+    FOLLOWING = "following"
+    STAR = "star"
+    RETURNING = "returning"  # back to the origin, facing theta 0, then hand back
+
+
+class _LegPhase(StrEnum):
+    TURN = "turn"  # rotate to the leg's bearing
+    OUT = "out"  # drive forward to the corner
+    BACK = "back"  # reverse to the centre
+
+
+# Leg bearings in the origin frame: ahead, left, behind, right [rad].
+_LEG_BEARINGS_RAD = (0.0, 0.5 * math.pi, math.pi, -0.5 * math.pi)
+
+
+@dataclass
+class _Attempt:
+    anchor: Pose2D  # odometry pose of the island origin
+    anchor_truth: Pose2D | None
+    epsilon_m: float
+    bound: float
+    first: bool
+    points: list[FloatArray] = field(default_factory=list)  # in the origin frame [m]
+    leg: int = 0
+    phase: _LegPhase = _LegPhase.TURN
+    leg_length_m: float = 0.0
+    legs_done: list[tuple[float, float]] = field(default_factory=list)
+    best: float = 0.0
+    best_type: ModelType = ModelType.LINE
+    model: LineModel | None = None
+    outcome: EventKind | None = None  # set when accepted or dismissed
+
+
+class IslandBuilder:
+    """The island builder state machine (see the module docstring).
+
+    Call `on_odometry` for every odometry message, `on_scan` for every scan, `set_strategy`
+    whenever the hall follower publishes its executed strategy, `on_ground_truth` (evaluation
+    only: stamped on islands as origin_truth), and `command(t)` once per scan.
+    """
+
+    def __init__(
+        self,
+        config: BuilderConfig | None = None,
+        fit: FitFn | None = None,
+        evaluate: EvaluateFn | None = None,
+    ) -> None:
+        self.config = config if config is not None else BuilderConfig()
+        if fit is None or evaluate is None:
+            core = CoreMeasures(self.config)
+            fit = fit if fit is not None else core.fit
+            evaluate = evaluate if evaluate is not None else core.evaluate
+        self._fit = fit
+        self._evaluate = evaluate
+        self._state = _State.WAITING
+        self._odom: Pose2D | None = None
+        self._cov = np.zeros((3, 3))
+        self._rel = RelativeCovariance()  # error since the last island origin
+        self._star_rel: RelativeCovariance | None = None  # error since the attempt's anchor
+        self._truth: Pose2D | None = None
+        self._last_scan: tuple[FloatArray, FloatArray] | None = None
+        self._path_m = 0.0  # odometric path length while following [m]
+        self._recent: deque[tuple[float, FloatArray]] = deque()  # (path_m, points in odom frame)
+        self._last_island: Island | None = None
+        self._island_path_start_m = 0.0  # path length when the last island was handed back
+        self._retry_at_path_m = 0.0
+        self._strategy = ControlStrategy(())
+        self._attempt: _Attempt | None = None
+        self._events: list[BuilderEvent] = []
+        self._t = 0.0
+        self.islands: list[Island] = []
+        self.edges: list[Edge] = []
+        self.island_origins_odom: dict[int, Pose2D] = {}
+        self.counts: dict[EventKind, int] = {k: 0 for k in EventKind}
+
+    # ----- inputs -----
+
+    def on_odometry(self, t_s: float, odom_pose: Pose2D, cov3x3: npt.ArrayLike) -> None:
+        """Latest odometry pose and its 3x3 covariance (x, y, theta) [m, rad]."""
+        cov = np.asarray(cov3x3, dtype=np.float64)
+        if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+            raise BuilderError(
+                f"on_odometry: covariance must be a finite 3x3 matrix, got shape {cov.shape}"
+            )
+        if not math.isfinite(t_s):
+            raise BuilderError(f"on_odometry: time must be finite, got {t_s}")
+        if self._odom is not None and self._state is _State.FOLLOWING:
+            self._path_m += math.hypot(odom_pose.x - self._odom.x, odom_pose.y - self._odom.y)
+        self._odom = odom_pose
+        self._cov = cov
+        self._rel.update(odom_pose, cov)
+        if self._star_rel is not None:
+            self._star_rel.update(odom_pose, cov)
+        self._t = max(self._t, t_s)
+
+    def on_ground_truth(self, pose: Pose2D) -> None:
+        """The simulator's true pose, stored on islands as origin_truth for evaluation only."""
+        self._truth = pose
+
+    def set_strategy(self, strategy: ControlStrategy) -> None:
+        """The hall follower's strategy executed since its last reset (at the last island)."""
+        self._strategy = strategy
+
+    def on_scan(self, t_s: float, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike) -> None:
+        """A sonar scan: ranges from the robot centre [m] (inf = no echo) at robot-frame angles."""
+        r = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
+        a = np.asarray(angles_rad, dtype=np.float64).reshape(-1)
+        if r.shape != a.shape:
+            raise BuilderError(f"on_scan: {r.shape[0]} ranges but {a.shape[0]} angles")
+        if not math.isfinite(t_s):
+            raise BuilderError(f"on_scan: time must be finite, got {t_s}")
+        self._t = max(self._t, t_s)
+        self._last_scan = (r, a)
+        if self._odom is None:
+            return
+        pts = _scan_points(r, a, self._odom)
+        if self._state is _State.STAR and self._attempt is not None:
+            self._attempt.points.append(_to_frame(pts, self._attempt.anchor))
+        self._recent.append((self._path_m, pts))
+        while self._recent and self._recent[0][0] < self._path_m - self.config.quick_history_m:
+            self._recent.popleft()
+
+    # ----- queries -----
+
+    @property
+    def state(self) -> str:
+        return self._state.value
+
+    @property
+    def epsilon_m(self) -> float:
+        """The current epsilon [m] (see `RelativeCovariance`)."""
+        return self._rel.epsilon_m
+
+    @property
+    def last_island(self) -> Island | None:
+        return self._last_island
+
+    # ----- the decision step -----
+
+    def command(self, t_s: float) -> BuilderCommand:
+        """What to do now (call once per scan) and the events since the last call."""
+        self._t = max(self._t, t_s)
+        v, w = 0.0, 0.0
+        if self._state is _State.WAITING:
+            if self._odom is not None and self._last_scan is not None:
+                if self.config.build_first_island:
+                    self._start_attempt(first=True)
+                else:
+                    self._rel.reset()
+                    self._state = _State.FOLLOWING
+        if self._state is _State.FOLLOWING:
+            self._maybe_attempt()
+        if self._state is _State.STAR:
+            v, w = self._star_step()
+        if self._state is _State.RETURNING:
+            v, w = self._return_step()
+        mode = (
+            CommandMode.DRIVE
+            if self._state in (_State.STAR, _State.RETURNING)
+            else (CommandMode.FOLLOW if self._state is _State.FOLLOWING else CommandMode.DRIVE)
+        )
+        events, self._events = tuple(self._events), []
+        return BuilderCommand(mode, v, w, events)
+
+    # ----- internals -----
+
+    def _emit(self, kind: EventKind, epsilon_m: float | None = None, **kw: object) -> None:
+        assert self._odom is not None
+        self.counts[kind] += 1
+        eps = self.epsilon_m if epsilon_m is None else epsilon_m
+        self._events.append(
+            BuilderEvent(kind, self._t, self._odom, eps, **kw)  # type: ignore[arg-type]
+        )
+
+    def _measure(self, points: FloatArray, at: FloatArray) -> tuple[ModelType, float, LineModel]:
+        if points.shape[0] < 2:
+            return ModelType.LINE, 0.0, LineModel()
+        model = self._fit(points)
+        if len(model) == 0:
+            return ModelType.LINE, 0.0, model
+        t, best = normalized_measures(self.config, self._evaluate(model.segments, at))
+        return t, best, model
+
+    def _maybe_attempt(self) -> None:
+        eps = self.epsilon_m
+        if eps <= self.config.e_min_m or self._path_m < self._retry_at_path_m:
+            return
+        assert self._odom is not None
+        bound = eq3_bound(self.config, eps)
+        pts = (
+            np.concatenate([p for _, p in self._recent], axis=0)
+            if self._recent
+            else np.zeros((0, 2))
+        )
+        _, quick, _ = self._measure(pts, np.array([self._odom.x, self._odom.y]))
+        if quick < self.config.quick_reject_fraction * bound:
+            self._retry_at_path_m = self._path_m + self.config.retry_distance_m
+            self._emit(
+                EventKind.ATTEMPT_FAILED_AT_ONCE,
+                anchor_odom=self._odom,
+                measure=quick,
+                bound=bound,
+            )
+            return
+        self._start_attempt(first=False)
+
+    def _start_attempt(self, first: bool) -> None:
+        assert self._odom is not None and self._last_scan is not None
+        eps = self.epsilon_m
+        bound = eq3_bound(self.config, eps) if not first else self.config.first_island_min_measure
+        self._attempt = _Attempt(
+            anchor=self._odom,
+            anchor_truth=self._truth,
+            epsilon_m=eps,
+            bound=bound,
+            first=first,
+        )
+        self._attempt.points.append(
+            _to_frame(_scan_points(*self._last_scan, self._odom), self._odom)
+        )
+        self._star_rel = RelativeCovariance()
+        self._star_rel.update(self._odom, self._cov)
+        self._state = _State.STAR
+        self._emit(EventKind.ATTEMPT_STARTED, anchor_odom=self._odom, bound=bound)
+
+    def _pose_in_anchor(self) -> Pose2D:
+        assert self._odom is not None and self._attempt is not None
+        return self._odom.relative_to(self._attempt.anchor)
+
+    def _ahead_free_m(self) -> float:
+        """Nearest echo within the ahead cone of the latest scan (from the robot centre) [m]."""
+        if self._last_scan is None:
+            return 0.0
+        r, a = self._last_scan
+        half = math.radians(self.config.star.ahead_halfwidth_deg)
+        wrapped = np.arctan2(np.sin(a), np.cos(a))
+        sel = np.abs(wrapped) <= half
+        vals = r[sel & np.isfinite(r)]
+        return float(vals.min()) if vals.size else math.inf
+
+    def _turn_to(self, heading_rad: float) -> tuple[float, float] | None:
+        """(0, w) toward the heading in the origin frame, or None when already there."""
+        sc = self.config.star
+        err = wrap_angle(heading_rad - self._pose_in_anchor().theta)
+        if abs(err) <= math.radians(sc.heading_tol_deg):
+            return None
+        w = float(np.clip(sc.heading_gain_per_s * err, -sc.turn_rate_radps, sc.turn_rate_radps))
+        return 0.0, w
+
+    def _star_step(self) -> tuple[float, float]:
+        att = self._attempt
+        assert att is not None
+        sc = self.config.star
+        while att.leg < len(_LEG_BEARINGS_RAD):
+            bearing = _LEG_BEARINGS_RAD[att.leg]
+            if att.phase is _LegPhase.TURN:
+                cmd = self._turn_to(bearing)
+                if cmd is not None:
+                    return cmd
+                free = self._ahead_free_m() - sc.clearance_m
+                att.leg_length_m = min(sc.leg_length_m, free)
+                if att.leg_length_m < sc.min_leg_m:
+                    att.leg += 1  # this corner is not reachable: skip it
+                    continue
+                att.phase = _LegPhase.OUT
+            pose = self._pose_in_anchor()
+            u = np.array([math.cos(bearing), math.sin(bearing)])
+            along = float(u @ np.array([pose.x, pose.y]))
+            lateral = float(np.array([-u[1], u[0]]) @ np.array([pose.x, pose.y]))
+            if att.phase is _LegPhase.OUT:
+                remaining = att.leg_length_m - along
+                blocked = self._ahead_free_m() < sc.clearance_m
+                if remaining > sc.position_tol_m and not blocked:
+                    return self._drive_line(bearing, lateral, min(sc.speed_mps, remaining * 2.0))
+                att.legs_done.append((bearing, max(along, 0.0)))
+                att.phase = _LegPhase.BACK
+                if self._evaluate_attempt():
+                    return 0.0, 0.0
+            if att.phase is _LegPhase.BACK:
+                if along > sc.position_tol_m:
+                    return self._drive_line(bearing, lateral, -min(sc.speed_mps, along * 2.0))
+                att.leg += 1
+                att.phase = _LegPhase.TURN
+        # All legs done without a decision.
+        if att.first or att.best > att.bound:
+            self._accept()
+        else:
+            self._dismiss(partial=False)
+        return 0.0, 0.0
+
+    def _drive_line(self, bearing: float, lateral_m: float, v: float) -> tuple[float, float]:
+        """Drive along the leg's line through the origin (forward or reversing), holding heading."""
+        sc = self.config.star
+        heading_err = wrap_angle(bearing - self._pose_in_anchor().theta)
+        # Steer back onto the line: a lateral offset to the left calls for a right turn going
+        # forward and a left turn reversing.
+        steer = heading_err - math.copysign(1.0, v) * 1.5 * lateral_m
+        w = float(np.clip(sc.heading_gain_per_s * steer, -sc.turn_rate_radps, sc.turn_rate_radps))
+        return v, w
+
+    def _evaluate_attempt(self) -> bool:
+        """Fit and evaluate after a leg; returns True when the attempt was decided."""
+        att = self._attempt
+        assert att is not None
+        pts = np.concatenate(att.points, axis=0) if att.points else np.zeros((0, 2))
+        t, best, model = self._measure(pts, np.zeros(2))
+        if best >= att.best:
+            att.best, att.best_type, att.model = best, t, model
+        if att.first:
+            return False  # island 0: always the full star
+        if att.best > att.bound:
+            if self.config.complete_star:
+                return False  # acceptable: finish the star for a complete model
+            self._accept()
+            return True
+        if len(att.legs_done) >= self.config.dismiss_min_legs and (
+            att.best < self.config.dismiss_fraction * att.bound
+        ):
+            self._dismiss(partial=True)
+            return True
+        return False
+
+    def _accept(self) -> None:
+        att = self._attempt
+        assert att is not None
+        if att.first and att.best <= self.config.first_island_min_measure and att.bound > 0:
+            self._dismiss(partial=False)
+            return
+        pts = np.concatenate(att.points, axis=0) if att.points else np.zeros((0, 2))
+        model = self._fit(pts) if pts.shape[0] >= 2 else LineModel()
+        island = Island(
+            id=len(self.islands),
+            model=model,
+            model_type=att.best_type,
+            r=float(att.best),
+            built_at_s=self._t,
+            origin_truth=att.anchor_truth,
+        )
+        edge = None
+        if self._last_island is not None:
+            length = max(self._path_m - self._island_path_start_m, 0.0)
+            edge = Edge(
+                source=self._last_island.id,
+                target=island.id,
+                strategy=self._strategy,
+                weight=length + att.epsilon_m,
+                length_m=length,
+                expected_error_m=att.epsilon_m,
+            )
+            self.edges.append(edge)
+        self.islands.append(island)
+        self.island_origins_odom[island.id] = att.anchor
+        self._last_island = island
+        if self._star_rel is not None:  # epsilon restarts from the island origin
+            self._rel.p = self._star_rel.p.copy()
+        att.outcome = EventKind.ISLAND_ACCEPTED
+        self._emit(
+            EventKind.ISLAND_ACCEPTED,
+            epsilon_m=att.epsilon_m,
+            anchor_odom=att.anchor,
+            measure=att.best,
+            bound=att.bound,
+            legs_m=tuple(att.legs_done),
+            island=island,
+            edge=edge,
+        )
+        self._state = _State.RETURNING
+
+    def _dismiss(self, partial: bool) -> None:
+        att = self._attempt
+        assert att is not None
+        att.outcome = EventKind.ATTEMPT_DISMISSED
+        self._retry_at_path_m = self._path_m + self.config.retry_distance_m
+        self._emit(
+            EventKind.ATTEMPT_DISMISSED,
+            epsilon_m=att.epsilon_m,
+            anchor_odom=att.anchor,
+            measure=att.best,
+            bound=att.bound,
+            legs_m=tuple(att.legs_done),
+            partial=partial,
+        )
+        self._state = _State.RETURNING
+
+    def _return_step(self) -> tuple[float, float]:
+        att = self._attempt
+        assert att is not None
+        sc = self.config.star
+        pose = self._pose_in_anchor()
+        dist = math.hypot(pose.x, pose.y)
+        if dist > sc.position_tol_m:
+            # Reverse or drive straight back to the centre along the current heading's line.
+            to_c = math.atan2(-pose.y, -pose.x)
+            err = wrap_angle(to_c - pose.theta)
+            if abs(err) < 0.5 * math.pi:
+                if abs(err) > math.radians(10.0):
+                    return self._turn_to(to_c) or (0.0, 0.0)
+                return self._drive_line(to_c, 0.0, min(sc.speed_mps, 2.0 * dist))
+            back = wrap_angle(to_c + math.pi)
+            if abs(wrap_angle(back - pose.theta)) > math.radians(10.0):
+                return self._turn_to(back) or (0.0, 0.0)
+            return self._drive_line(back, 0.0, -min(sc.speed_mps, 2.0 * dist))
+        cmd = self._turn_to(0.0)
+        if cmd is not None:
+            return cmd
+        accepted = att.outcome is EventKind.ISLAND_ACCEPTED
+        if accepted:
+            self._island_path_start_m = self._path_m
+            self._strategy = ControlStrategy(())
+        self._emit(
+            EventKind.HANDED_BACK,
+            anchor_odom=att.anchor,
+            accepted_island_id=self._last_island.id if accepted and self._last_island else None,
+        )
+        self._attempt = None
+        self._star_rel = None
+        self._recent.clear()
+        self._state = _State.FOLLOWING
+        return 0.0, 0.0
+
+
+def _scan_points(r: FloatArray, a: FloatArray, pose: Pose2D) -> FloatArray:
+    """(K, 2) points [m] of the finite ranges in the pose's parent frame."""
+    ok = np.isfinite(r) & np.isfinite(a)
+    ang = a[ok] + pose.theta
+    return np.stack([pose.x + r[ok] * np.cos(ang), pose.y + r[ok] * np.sin(ang)], axis=1)
+
+
+def _to_frame(points: FloatArray, frame: Pose2D) -> FloatArray:
+    """(K, 2) points [m] of the parent frame expressed in `frame`."""
+    c, s = math.cos(frame.theta), math.sin(frame.theta)
+    d = points - np.array([frame.x, frame.y])
+    return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)

@@ -1,0 +1,368 @@
+"""Island builder decisions (core.builder) on synthetic worlds: accept, dismiss, fail at once,
+retry, eq. 3, epsilon; no ROS."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pytest
+
+from island_mapping.core.builder import (
+    BuilderConfig,
+    BuilderError,
+    BuilderEvent,
+    CommandMode,
+    EventKind,
+    IslandBuilder,
+    RelativeCovariance,
+    StarConfig,
+    eq3_bound,
+    normalized_measures,
+)
+from island_msgs_py.types import ControlStrategy, FloatArray, LineModel, ModelType, Pose2D
+from island_sim.core.robot import OdometryConfig, SimRobot
+from island_sim.core.sonar import SonarConfig, SonarModel
+from island_sim.core.world import World
+
+HALF_WIDTH_M = 1.25  # corridors 2.5 m wide
+DT_S = 0.02  # physics step [s]
+STEPS_PER_SCAN = 5  # 10 Hz scans
+
+
+def corridor_world() -> World:
+    """A plain 60 m corridor along x: no feature anywhere near its middle."""
+    h = HALF_WIDTH_M
+    return World(np.array([[-30.0, -h, 30.0, -h], [-30.0, h, 30.0, h]]), "corridor")
+
+
+def dead_end_world() -> World:
+    """A corridor along x that ends in a wall at x = 0 (a corridor end)."""
+    h = HALF_WIDTH_M
+    segs = [[-40.0, -h, 0.0, -h], [-40.0, h, 0.0, h], [0.0, -h, 0.0, h]]
+    return World(np.array(segs), "dead_end")
+
+
+@dataclass
+class Run:
+    builder: IslandBuilder
+    events: list[BuilderEvent]
+    robot: SimRobot
+    modes: list[CommandMode]
+
+
+def run_builder(
+    world: World,
+    start: Pose2D,
+    builder: IslandBuilder,
+    sim_s: float,
+    sigma_of_path: Callable[[float], float],
+    seed: int = 0,
+    stop_x: float = math.inf,
+) -> Run:
+    """Close the loop: scans -> builder -> (FOLLOW: a test stand-in drives +x along y = 0 |
+    DRIVE: the builder's twist) -> SimRobot. The odometry covariance is sigma(path)^2 * I_xy, so
+    epsilon is controlled by the path length followed; the odometry itself is exact."""
+    rng = np.random.default_rng(seed)
+    robot = SimRobot(world, start, rng, odometry=OdometryConfig.exact())
+    sonar = SonarModel(SonarConfig(), seed=seed)
+    t, path = 0.0, 0.0
+    events: list[BuilderEvent] = []
+    modes: list[CommandMode] = []
+    last = robot.odom_pose
+    builder.on_odometry(t, last, np.zeros((3, 3)))
+    for _ in range(int(sim_s * 10)):
+        builder.on_scan(t, sonar.scan(world, robot.true_pose, rng), sonar.angles_rad)
+        cmd = builder.command(t)
+        events.extend(cmd.events)
+        modes.append(cmd.mode)
+        if cmd.mode is CommandMode.FOLLOW:
+            p = robot.true_pose
+            v = 0.4 if p.x < stop_x else 0.0
+            w = float(np.clip(-2.0 * p.theta - 1.0 * p.y, -1.0, 1.0))
+        else:
+            v, w = cmd.v_mps, cmd.w_radps
+        for _ in range(STEPS_PER_SCAN):
+            robot.step(v, w, DT_S)
+            t += DT_S
+            o = robot.odom_pose
+            if cmd.mode is CommandMode.FOLLOW:
+                path += math.hypot(o.x - last.x, o.y - last.y)
+            last = o
+            s = sigma_of_path(path)
+            builder.on_ground_truth(robot.true_pose)
+            builder.on_odometry(t, o, np.diag([s * s, s * s, 1e-6]))
+    return Run(builder, events, robot, modes)
+
+
+def kinds(events: list[BuilderEvent]) -> list[EventKind]:
+    return [e.kind for e in events]
+
+
+def test_featureless_corridor_fails_at_once_and_retries_after_moving() -> None:
+    cfg = BuilderConfig(build_first_island=False, retry_distance_m=1.0)
+    run = run_builder(corridor_world(), Pose2D(-20.0, 0.0, 0.0), IslandBuilder(cfg), 60.0,
+                      lambda p: 0.05 * p)
+    fails = [e for e in run.events if e.kind is EventKind.ATTEMPT_FAILED_AT_ONCE]
+    # Epsilon passes E_min = 0.3 m after 6 m; then one quick attempt per retry distance.
+    assert len(fails) >= 10
+    assert EventKind.ATTEMPT_STARTED not in kinds(run.events)
+    assert all(m is CommandMode.FOLLOW for m in run.modes[1:])
+    xs = np.array([e.odom_pose.x for e in fails])
+    assert xs[0] == pytest.approx(-14.0, abs=0.1)
+    assert np.all(np.diff(xs) >= 1.0 - 1e-6)
+    assert np.all(np.diff(xs) < 1.2)
+    for e in fails:
+        assert e.epsilon_m > cfg.e_min_m
+        assert e.measure < cfg.quick_reject_fraction * e.bound
+
+
+def test_plain_corridor_star_is_dismissed_partially_and_returns_to_its_centre() -> None:
+    # No quick rejection: the star itself has to find out that the corridor is poor.
+    cfg = BuilderConfig(build_first_island=False, quick_reject_fraction=0.0)
+    run = run_builder(corridor_world(), Pose2D(-20.0, 0.0, 0.0), IslandBuilder(cfg), 40.0,
+                      lambda p: 0.05 * p)
+    ks = kinds(run.events)
+    assert ks[:3] == [EventKind.ATTEMPT_STARTED, EventKind.ATTEMPT_DISMISSED,
+                      EventKind.HANDED_BACK]
+    started, dismissed, back = run.events[:3]
+    assert dismissed.partial
+    assert len(dismissed.legs_m) == cfg.dismiss_min_legs < 4
+    assert dismissed.measure < cfg.dismiss_fraction * dismissed.bound
+    assert EventKind.ISLAND_ACCEPTED not in ks
+    # The robot is handed back where the star started, facing the same way.
+    assert started.anchor_odom is not None
+    rel = back.odom_pose.relative_to(started.anchor_odom)
+    assert math.hypot(rel.x, rel.y) < 0.05
+    assert abs(rel.theta) < math.radians(3.0)
+    # The legs stayed in free space: the sideways leg was shortened by the wall clearance.
+    side = [length for bearing, length in dismissed.legs_m if abs(bearing) > 1.0]
+    assert side and all(length < HALF_WIDTH_M - 0.5 for length in side)
+    assert run.robot.collisions == 0
+    assert run.builder.islands == []
+
+
+def test_corridor_end_is_accepted_with_a_full_star_and_linked_to_the_start_island() -> None:
+    builder = IslandBuilder(BuilderConfig())
+    builder.set_strategy(ControlStrategy.parse("Go 999"))  # stale: must be replaced
+    run = run_builder(dead_end_world(), Pose2D(-14.0, 0.0, 0.0), builder, 140.0,
+                      lambda p: 0.05 * p, stop_x=-1.5)
+    acc = [e for e in run.events if e.kind is EventKind.ISLAND_ACCEPTED]
+    assert len(acc) >= 2
+    first, second = acc[0], acc[1]
+    assert first.island is not None and first.island.id == 0 and first.edge is None
+    assert first.anchor_odom == Pose2D(-14.0, 0.0, 0.0)
+    assert second.island is not None and second.edge is not None
+    # Island 1 sits near the corridor end: the end wall is within sonar range (6.5 m).
+    assert second.anchor_odom is not None and second.anchor_odom.x > -5.5
+    assert second.measure > second.bound
+    assert len(second.legs_m) == 4 or second.legs_m[-1][0] < 0  # complete star (skips allowed)
+    assert not second.partial
+    # Its model, in the island frame, contains the end wall: a segment more across the corridor
+    # than along it, centred near x = -anchor_x ahead of the origin (sonar arcs tilt it a bit).
+    segs = second.island.model.segments
+    across = np.abs(segs[:, 1] - segs[:, 3]) > np.abs(segs[:, 0] - segs[:, 2])
+    mid_x = 0.5 * (segs[:, 0] + segs[:, 2])
+    assert np.any(across & (np.abs(mid_x + second.anchor_odom.x) < 0.4))
+    # The edge holds the strategy given since island 0 was handed back, and a weight of the
+    # length followed plus the expected error.
+    e = second.edge
+    assert (e.source, e.target) == (0, 1)
+    assert str(e.strategy) == ""  # nobody called set_strategy after island 0
+    assert e.length_m == pytest.approx(second.anchor_odom.x - first.anchor_odom.x, abs=0.15)
+    assert e.expected_error_m == pytest.approx(second.epsilon_m)
+    assert e.weight == pytest.approx(e.length_m + e.expected_error_m)
+    assert second.island.origin_truth is not None
+    assert second.island.origin_truth.x == pytest.approx(second.anchor_odom.x, abs=1e-6)
+    assert run.robot.collisions == 0
+
+
+def test_edge_carries_the_followers_strategy_since_the_last_island() -> None:
+    builder = IslandBuilder(BuilderConfig())
+    world, start = dead_end_world(), Pose2D(-14.0, 0.0, 0.0)
+    rng = np.random.default_rng(1)
+    robot = SimRobot(world, start, rng, odometry=OdometryConfig.exact())
+    sonar = SonarModel(SonarConfig(), seed=1)
+    t, handed = 0.0, False
+    accepted = []
+    for _ in range(2000):
+        builder.on_scan(t, sonar.scan(world, robot.true_pose, rng), sonar.angles_rad)
+        cmd = builder.command(t)
+        for ev in cmd.events:
+            if ev.kind is EventKind.HANDED_BACK:
+                handed = True
+            if ev.kind is EventKind.ISLAND_ACCEPTED:
+                accepted.append(ev)
+        if handed:
+            builder.set_strategy(ControlStrategy.parse("Go 1150"))
+        v, w = (0.4, 0.0) if cmd.mode is CommandMode.FOLLOW else (cmd.v_mps, cmd.w_radps)
+        if cmd.mode is CommandMode.FOLLOW and robot.true_pose.x > -2.5:
+            v = 0.0
+        for _ in range(STEPS_PER_SCAN):
+            robot.step(v, w, DT_S)
+            t += DT_S
+            s = 0.06 * max(robot.odom_pose.x - start.x, 0.0)
+            builder.on_odometry(t, robot.odom_pose, np.diag([s * s, s * s, 0.0]))
+        if len(accepted) == 2:
+            break
+    assert len(accepted) == 2
+    edge = accepted[1].edge
+    assert edge is not None and str(edge.strategy) == "Go 1150"
+    assert builder.edges == [edge]
+    assert [i.id for i in builder.islands] == [0, 1]
+    assert set(builder.island_origins_odom) == {0, 1}
+
+
+class FixedMeasures:
+    """A stand-in line fit and evaluation that report a fixed measure (eq. 3 in isolation)."""
+
+    def __init__(self, line: float, fisher: float = 0.0) -> None:
+        self.values = {ModelType.LINE: line, ModelType.FISHER: fisher}
+        self.calls = 0
+
+    def fit(self, points: FloatArray) -> LineModel:
+        return LineModel(np.array([[0.0, 0.0, 1.0, 0.0]]))
+
+    def evaluate(self, segments: FloatArray, point: FloatArray) -> Mapping[ModelType, float]:
+        self.calls += 1
+        return self.values
+
+
+@pytest.mark.parametrize(("eps_m", "accepted"), [(0.31, False), (0.5, True)])
+def test_eq3_same_measure_accepted_when_lost_rejected_when_not(
+    eps_m: float, accepted: bool
+) -> None:
+    """R_line / T_line = 0.2 / 0.25 = 0.8 everywhere. Eq. 3 accepts when 0.8 > E_min / epsilon,
+    i.e. epsilon > 0.375 m: at epsilon 0.31 m the star completes and is dismissed, at 0.5 m the
+    same measure builds an island."""
+    fm = FixedMeasures(line=0.2)
+    cfg = BuilderConfig(build_first_island=False, bound_floor=0.0, quick_reject_fraction=0.0,
+                        threshold_line=0.25, e_min_m=0.3)
+    b = IslandBuilder(cfg, fit=fm.fit, evaluate=fm.evaluate)
+    angles = np.linspace(0, 2 * math.pi, 16, endpoint=False)
+    cov = np.diag([eps_m**2, eps_m**2, 0.0])
+    b.on_odometry(0.0, Pose2D(0.0, 0.0, 0.0), np.zeros((3, 3)))
+    b.on_scan(0.0, np.full(16, 5.0), angles)
+    assert b.command(0.0).mode is CommandMode.FOLLOW  # no island 0: following, epsilon 0
+    b.on_odometry(0.1, Pose2D(0.0, 0.0, 0.0), cov)  # epsilon jumps to its test value
+    assert b.epsilon_m == pytest.approx(eps_m, rel=1e-6)
+    pose, t = Pose2D(0.0, 0.0, 0.0), 0.1
+    got: list[BuilderEvent] = []
+    for _ in range(3000):
+        b.on_scan(t, np.full(16, 5.0), angles)
+        cmd = b.command(t)
+        got += cmd.events
+        if any(e.kind is EventKind.HANDED_BACK for e in got):
+            break
+        for _ in range(STEPS_PER_SCAN):  # a stand-in robot that executes commands exactly
+            pose = Pose2D(
+                pose.x + cmd.v_mps * DT_S * math.cos(pose.theta),
+                pose.y + cmd.v_mps * DT_S * math.sin(pose.theta),
+                pose.theta + cmd.w_radps * DT_S,
+            )
+            t += DT_S
+            b.on_odometry(t, pose, cov)
+    ks = kinds(got)
+    assert ks[0] is EventKind.ATTEMPT_STARTED
+    assert got[0].bound == pytest.approx(cfg.e_min_m / eps_m)
+    assert ks[-1] is EventKind.HANDED_BACK
+    assert (EventKind.ISLAND_ACCEPTED in ks) is accepted
+    assert (EventKind.ATTEMPT_DISMISSED in ks) is (not accepted)
+    decided = got[-2]
+    assert len(decided.legs_m) == 4  # 0.8 >= 0.5 * bound: never dismissed early; full star
+    assert decided.measure == pytest.approx(0.8)
+    assert fm.calls >= 4
+
+
+def test_eq3_bound_and_normalization() -> None:
+    cfg = BuilderConfig(e_min_m=0.3, bound_floor=0.0, threshold_line=0.25, threshold_fisher=0.5)
+    assert eq3_bound(cfg, 0.6) == pytest.approx(0.5)
+    assert eq3_bound(cfg, 0.0) == math.inf
+    assert eq3_bound(replace(cfg, bound_floor=0.7), 0.6) == pytest.approx(0.7)
+    t, best = normalized_measures(cfg, {ModelType.LINE: 0.1, ModelType.FISHER: 0.4})
+    assert t is ModelType.FISHER and best == pytest.approx(0.8)
+    t, best = normalized_measures(cfg, {ModelType.LINE: 0.3, ModelType.FISHER: float("nan")})
+    assert t is ModelType.LINE and best == pytest.approx(1.2)
+
+
+def test_relative_covariance_ignores_heading_uncertainty_held_at_the_anchor() -> None:
+    """A robot that was already uncertain in heading at the anchor drives 10 m straight with no
+    new noise: its error relative to the anchor is 0, although Sigma_now - Sigma_anchor would
+    say 10 m * 0.1 rad = 1 m. With per-step noise the relative epsilon grows as injected."""
+    sigma_theta = 0.1
+    cov = np.diag([0.0, 0.0, sigma_theta**2])
+    tracker = RelativeCovariance()
+    pose = Pose2D(0.0, 0.0, 0.0)
+    tracker.update(pose, cov)
+    tracker.reset()
+    cov_anchor = cov.copy()
+    q_xy = 1e-4  # injected per step on x and y [m^2]
+    for noisy in (False, True):
+        tracker.reset()
+        pose, cov = Pose2D(0.0, 0.0, 0.0), cov_anchor.copy()
+        tracker.update(pose, cov)
+        tracker.reset()
+        for _ in range(100):
+            ds = 0.1
+            f = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, ds], [0.0, 0.0, 1.0]])
+            cov = f @ cov @ f.T + (np.diag([q_xy, q_xy, 0.0]) if noisy else 0.0)
+            pose = Pose2D(pose.x + ds, 0.0, 0.0)
+            tracker.update(pose, cov)
+        naive = math.sqrt(max(np.linalg.eigvalsh((cov - cov_anchor)[:2, :2])))
+        assert naive > 0.99
+        if noisy:
+            assert tracker.epsilon_m == pytest.approx(math.sqrt(100 * q_xy), rel=0.01)
+        else:
+            assert tracker.epsilon_m < 1e-6
+
+
+def test_relative_epsilon_matches_a_robot_started_fresh_at_the_anchor() -> None:
+    """Drive a drifting SimRobot around a loop, anchor midway; compare the tracker with the
+    covariance of an identical robot whose covariance starts at 0 at the anchor."""
+    odo = OdometryConfig(var_dist_m2_per_m=1e-3, var_heading_rad2_per_m=1e-3,
+                         var_heading_rad2_per_rad=1e-3)
+    a = SimRobot(None, Pose2D(0.0, 0.0, 0.0), np.random.default_rng(3), odometry=odo)
+    commands = [(0.5, 0.0)] * 200 + [(0.0, 0.8)] * 100 + [(0.5, 0.1)] * 300
+    tracker = RelativeCovariance()
+    for v, w in commands[:300]:
+        a.step(v, w, DT_S)
+        tracker.update(a.odom_pose, a.odom_covariance)
+    tracker.reset()
+    b = SimRobot(None, a.true_pose, np.random.default_rng(99), odometry=odo,
+                 odom_start=a.odom_pose)
+    for v, w in commands[300:]:
+        a.step(v, w, DT_S)
+        b.step(v, w, DT_S)
+        tracker.update(a.odom_pose, a.odom_covariance)
+    fresh = math.sqrt(max(np.linalg.eigvalsh(b.odom_covariance[:2, :2])))
+    assert a.epsilon_m > 1.5 * fresh  # the global estimate carries the pre-anchor heading error
+    assert tracker.epsilon_m == pytest.approx(fresh, rel=0.15)
+
+
+def test_bad_config_and_inputs_name_the_problem() -> None:
+    with pytest.raises(BuilderError, match="e_min_m"):
+        BuilderConfig(e_min_m=-1.0)
+    with pytest.raises(BuilderError, match="dismiss_min_legs"):
+        BuilderConfig(dismiss_min_legs=7)
+    with pytest.raises(BuilderError, match="min_leg_m"):
+        StarConfig(leg_length_m=0.5, min_leg_m=1.0)
+    b = IslandBuilder(BuilderConfig(), fit=FixedMeasures(0.0).fit,
+                      evaluate=FixedMeasures(0.0).evaluate)
+    with pytest.raises(BuilderError, match="covariance"):
+        b.on_odometry(0.0, Pose2D(0.0, 0.0, 0.0), np.full((3, 3), np.nan))
+    with pytest.raises(BuilderError, match="angles"):
+        b.on_scan(0.0, np.ones(16), np.ones(15))
+
+
+def test_builder_core_does_not_import_rclpy() -> None:
+    code = (
+        "import sys, island_mapping.core.builder; "
+        "print('rclpy' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False"
