@@ -11,7 +11,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
-
 from island_mapping.core.builder import (
     BuilderConfig,
     BuilderError,
