@@ -176,7 +176,7 @@ def segment_normals(segments: FloatArray) -> FloatArray:
 def ray_angles(angular_res_deg: float) -> FloatArray:
     """(n,) ray angles [rad]: j * angular_res_deg for j = 0 .. round(360 / res) - 1."""
     n = max(1, round(360.0 / angular_res_deg))
-    return np.arange(n) * math.radians(angular_res_deg)
+    return np.arange(n, dtype=np.float64) * math.radians(angular_res_deg)
 
 
 def cast_rays(
@@ -334,10 +334,11 @@ def grid_points(
         raise MeasureError(f"resolution_m: must be > 0, got {resolution_m}")
     nx = max(1, math.floor((xmax - xmin) / resolution_m + 1e-9))
     ny = max(1, math.floor((ymax - ymin) / resolution_m + 1e-9))
-    xs = xmin + (np.arange(nx) + 0.5) * resolution_m
-    ys = ymin + (np.arange(ny) + 0.5) * resolution_m
+    xs = xmin + (np.arange(nx, dtype=np.float64) + 0.5) * resolution_m
+    ys = ymin + (np.arange(ny, dtype=np.float64) + 0.5) * resolution_m
     gx, gy = np.meshgrid(xs, ys, indexing="xy")
-    return xs, ys, np.stack([gx.ravel(), gy.ravel()], axis=1)
+    pts = np.stack([gx.ravel(), gy.ravel()], axis=1).astype(np.float64)
+    return xs, ys, pts
 
 
 def measure_map(
