@@ -29,10 +29,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from island_msgs_py.types import FloatArray, as_segments
-from island_sim.core.world import raycast
+from island_msgs_py.types import FloatArray
+from island_sim.core.world import World
 
-from island_mapping.core.measure import as_points, ray_angles
+from island_mapping.core.measure import as_points, as_world, ray_angles
 
 # Rays per ray-cast call (bounds the temporaries of the brute-force caster).
 _RAYS_PER_CHUNK = 1 << 17
@@ -101,10 +101,11 @@ class FisherResult:
 
 
 def information_matrices(
-    segments: npt.ArrayLike, points: npt.ArrayLike, config: FisherConfig
+    segments: npt.ArrayLike | World, points: npt.ArrayLike, config: FisherConfig
 ) -> FloatArray:
     """(P, 3, 3) Fisher information at `points` (P, 2) [m] for the model `segments` (K, 4)."""
-    seg = as_segments(segments)
+    world = as_world(segments)
+    seg = world.segments
     pts = as_points(points)
     angles = ray_angles(config.angular_res_deg)
     n_rays = angles.shape[0]
@@ -117,7 +118,7 @@ def information_matrices(
         chunk = pts[s : s + per_chunk]
         nc = chunk.shape[0]
         ang = np.tile(angles, nc)
-        hits = raycast(seg, np.repeat(chunk, n_rays, axis=0), ang, config.max_range_m)
+        hits = world.raycast(np.repeat(chunk, n_rays, axis=0), ang, config.max_range_m)
         ok = (hits.segment >= 0) & (hits.cos_incidence >= cos_min)
         rho = np.where(ok, hits.distance_m, 0.0)
         u = np.stack([np.cos(ang), np.sin(ang)], axis=1)
@@ -146,7 +147,7 @@ def translational_information(info: FloatArray) -> FloatArray:
 
 
 def fisher_measure(
-    segments: npt.ArrayLike, points: npt.ArrayLike, config: FisherConfig | None = None
+    segments: npt.ArrayLike | World, points: npt.ArrayLike, config: FisherConfig | None = None
 ) -> FisherResult:
     """Fisher information, worst-direction eigenvalue, conditioning and score (module doc)."""
     cfg = config if config is not None else FisherConfig()

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import numpy.typing as npt
 from island_msgs_py.types import FloatArray, ModelType, as_segments
-from island_sim.core.world import raycast
+from island_sim.core.world import World
 
 # Rays per ray-cast call: bounds the (rays x segments) temporaries of the brute-force caster.
 _RAYS_PER_CHUNK = 1 << 17
@@ -179,15 +179,27 @@ def ray_angles(angular_res_deg: float) -> FloatArray:
     return np.arange(n, dtype=np.float64) * math.radians(angular_res_deg)
 
 
+def as_world(segments: npt.ArrayLike | World) -> World:
+    """A `World` over the segments (its spatial index makes ray casting fast on big models)."""
+    if isinstance(segments, World):
+        return segments
+    return World(as_segments(segments), name="model")
+
+
 def cast_rays(
-    segments: npt.ArrayLike,
+    segments: npt.ArrayLike | World,
     points: npt.ArrayLike,
     angular_res_deg: float,
     max_range_m: float,
     reflect_deg: float,
 ) -> RayBundle:
-    """Cast all rays of all `points` (P, 2) [m] and keep the counted ones (range, reflectance)."""
-    seg = as_segments(segments)
+    """Cast all rays of all `points` (P, 2) [m] and keep the counted ones (range, reflectance).
+
+    Rays go to `World.raycast` (island_sim's ray caster with its spatial index; identical to
+    the brute-force `raycast`).
+    """
+    world = as_world(segments)
+    seg = world.segments
     pts = as_points(points)
     angles = ray_angles(angular_res_deg)
     n_rays = angles.shape[0]
@@ -203,7 +215,7 @@ def cast_rays(
             chunk = pts[s : s + pts_per_chunk]
             origins = np.repeat(chunk, n_rays, axis=0)
             ang = np.tile(angles, chunk.shape[0])
-            hits = raycast(seg, origins, ang, max_range_m)
+            hits = world.raycast(origins, ang, max_range_m)
             ok = (hits.segment >= 0) & (hits.distance_m <= max_range_m)
             ok &= hits.cos_incidence >= cos_min
             idx = np.flatnonzero(ok)
@@ -303,14 +315,14 @@ def measure_from_bundle(bundle: RayBundle, config: MeasureConfig) -> MeasureResu
 
 
 def line_measure(
-    segments: npt.ArrayLike, points: npt.ArrayLike, config: MeasureConfig | None = None
+    segments: npt.ArrayLike | World, points: npt.ArrayLike, config: MeasureConfig | None = None
 ) -> MeasureResult:
     """The measure at `points` (P, 2) [m] of a line model `segments` (K, 4) [m]; see module doc.
 
     With config.eps_m > 0, r_eps is the mean of r over each point's averaging square.
     """
     cfg = config if config is not None else MeasureConfig()
-    seg = as_segments(segments)
+    seg = as_world(segments)
     pts = as_points(points)
     bundle = cast_rays(seg, pts, cfg.angular_res_deg, cfg.max_range_m, cfg.reflect_deg)
     res = measure_from_bundle(bundle, cfg)
@@ -342,7 +354,7 @@ def grid_points(
 
 
 def measure_map(
-    segments: npt.ArrayLike,
+    segments: npt.ArrayLike | World,
     bounds: tuple[float, float, float, float],
     resolution_m: float,
     config: MeasureConfig | None = None,
