@@ -89,7 +89,7 @@ class OdometryConfig:
     """
 
     wheel_radius_ratio_error: float = field(
-        default=0.002,
+        default=0.0005,
         metadata={"help": "relative difference of right vs left wheel radius (E_d - 1); the "
                   "odometric path of a straight drive curves by about -e / wheelbase [1/m] [-]"},
     )

@@ -1,0 +1,281 @@
+"""Hall follower: centring, stopping short of walls, turn policies, strategy record, pausing."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from island_msgs_py.types import ControlStrategy, Pose2D, PrimitiveKind
+from island_sim.core.hall_follower import (
+    FollowerState,
+    HallFollower,
+    HallFollowerConfig,
+    HallFollowerError,
+    TurnChoice,
+    TurnPolicy,
+    parse_script,
+)
+from island_sim.core.robot import OdometryConfig, SimRobot
+from island_sim.core.sonar import SonarConfig, SonarModel
+from island_sim.core.world import World
+
+DT_S = 0.02
+STEPS_PER_SCAN = 5
+
+
+def grid_world(rows: list[str], start: Pose2D, cell_m: float = 1.0) -> World:
+    """Walls along the borders of '#' cells; rows[0] is the top (largest y) row."""
+    free = np.array([[ch != "#" for ch in row] for row in rows])
+    h, w = free.shape
+    pad = np.zeros((h + 2, w + 2), dtype=bool)
+    pad[1:-1, 1:-1] = free
+    segs: list[list[float]] = []
+    for i in range(h + 1):  # horizontal borders between padded rows i and i+1
+        diff = pad[i, 1:-1] != pad[i + 1, 1:-1]
+        y = (h - i) * cell_m
+        j = 0
+        while j < w:
+            if diff[j]:
+                k = j
+                while k < w and diff[k]:
+                    k += 1
+                segs.append([j * cell_m, y, k * cell_m, y])
+                j = k
+            else:
+                j += 1
+    for j in range(w + 1):  # vertical borders between padded columns j and j+1
+        diff = pad[1:-1, j] != pad[1:-1, j + 1]
+        x = j * cell_m
+        i = 0
+        while i < h:
+            if diff[i]:
+                k = i
+                while k < h and diff[k]:
+                    k += 1
+                segs.append([x, (h - k) * cell_m, x, (h - i) * cell_m])
+                i = k
+            else:
+                i += 1
+    return World(np.array(segs, dtype=np.float64), name="grid", start_pose=start)
+
+
+def loop_world() -> World:
+    """A 26 x 16 m block with a 2 m corridor loop and a middle corridor (two T junctions)."""
+    rows = []
+    for i in range(16):
+        row = ""
+        for j in range(26):
+            horiz = (1 <= i <= 2 or 13 <= i <= 14) and 1 <= j <= 24
+            vert = (j in (1, 2, 12, 13, 23, 24)) and 1 <= i <= 14
+            row += "." if horiz or vert else "#"
+        rows.append(row)
+    return grid_world(rows, Pose2D(5.0, 14.0, 0.0))
+
+
+@dataclass
+class Run:
+    robot: SimRobot
+    follower: HallFollower
+    min_clearance_m: float
+    true_path: np.ndarray
+
+
+def simulate(
+    world: World,
+    follower: HallFollower,
+    duration_s: float,
+    seed: int = 1,
+    odometry: OdometryConfig | None = None,
+    ideal: bool = False,
+    start: Pose2D | None = None,
+) -> Run:
+    rng = np.random.default_rng(seed)
+    robot = SimRobot(world, start or world.start_pose, rng, odometry=odometry)
+    sonar = SonarModel(SonarConfig(ideal=ideal))
+    v = w = 0.0
+    min_clear = math.inf
+    path = []
+    for k in range(round(duration_s / DT_S)):
+        if k % STEPS_PER_SCAN == 0:
+            ranges = sonar.scan(world, robot.true_pose, rng)
+            v, w = follower.update(ranges, sonar.angles_rad, robot.odom_pose, robot.time_s)
+            path.append(robot.true_pose.as_array())
+        robot.step(v, w, DT_S)
+        min_clear = min(min_clear, robot.clearance_m)
+    return Run(robot, follower, min_clear, np.array(path))
+
+
+def test_keeps_to_the_middle_of_a_hallway() -> None:
+    rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]  # a 2 m wide, 38 m long hall
+    world = grid_world(rows, Pose2D(2.0, 2.0 - 0.5, math.radians(12.0)))
+    run = simulate(world, HallFollower(), 30.0)
+    tail = run.true_path[-50:]  # the last 5 s
+    assert np.max(np.abs(tail[:, 1] - 2.0)) < 0.12
+    assert np.max(np.abs(tail[:, 2])) < math.radians(5.0)
+    assert run.robot.collisions == 0
+    assert run.robot.true_pose.x > 12.0  # made progress at about the cruise speed
+
+
+def test_stops_short_of_a_dead_end_and_turns_back() -> None:
+    rows = ["#" * 14, *(["#" + "." * 12 + "#"] * 2), "#" * 14]
+    world = grid_world(rows, Pose2D(2.0, 2.0, 0.0))
+    cfg = HallFollowerConfig()
+    run = simulate(world, HallFollower(cfg), 40.0, odometry=OdometryConfig.exact())
+    assert run.robot.collisions == 0
+    assert run.min_clearance_m > cfg.stop_distance_m - cfg.robot_radius_m - 0.15
+    xs = run.true_path[:, 0]
+    assert xs.max() > 13.0 - cfg.stop_distance_m - 0.3  # got close to the end wall ...
+    assert xs.max() < 13.0 - cfg.robot_radius_m  # ... without reaching it
+    first = run.follower.decisions[0]
+    assert first.at_dead_end and first.choice is TurnChoice.BACK
+    rots = [s for s in run.follower.strategy().steps if s.kind is PrimitiveKind.ROT]
+    assert rots and abs(rots[0].value - 180) <= 3
+
+
+@pytest.mark.slow
+def test_follows_the_loop_for_600_s_with_noise_and_drift() -> None:
+    world = loop_world()
+    follower = HallFollower(HallFollowerConfig(policy=TurnPolicy.RIGHT_HAND))
+    run = simulate(world, follower, 600.0, seed=3)
+    assert run.robot.collisions == 0
+    assert run.min_clearance_m > 0.3
+    decisions = follower.decisions
+    assert len(decisions) >= 10
+    # T junctions (two choices) were met, and decisions happened at distinct places
+    assert sum(len(d.options) >= 2 for d in decisions) >= 3
+    assert run.robot.distance_m > 200.0
+    text = str(follower.strategy())
+    parsed = ControlStrategy.parse(text)
+    rots = [s.value for s in parsed.steps if s.kind is PrimitiveKind.ROT]
+    assert len(rots) >= 10 and all(abs(r - 270) <= 5 for r in rots)  # right turns only
+    assert parsed.length_m == pytest.approx(run.robot.distance_m, rel=0.05)
+
+
+@pytest.mark.parametrize(
+    ("policy", "expected"),
+    [(TurnPolicy.LEFT_HAND, TurnChoice.STRAIGHT), (TurnPolicy.RIGHT_HAND, TurnChoice.RIGHT)],
+)
+def test_policy_decides_at_the_first_junction(policy: TurnPolicy, expected: TurnChoice) -> None:
+    follower = HallFollower(HallFollowerConfig(policy=policy))
+    run = simulate(loop_world(), follower, 25.0, odometry=OdometryConfig.exact())
+    first = follower.decisions[0]
+    assert set(first.options) == {TurnChoice.STRAIGHT, TurnChoice.RIGHT}
+    assert first.choice is expected
+    assert abs(first.odom_pose.x - 12.0) < 1.0  # the middle corridor's junction at x = 12-14 m
+    assert run.robot.collisions == 0
+
+
+def test_scripted_and_random_policies() -> None:
+    scripted = HallFollower(HallFollowerConfig(policy=TurnPolicy.SCRIPTED, script="right, left"))
+    simulate(loop_world(), scripted, 60.0, odometry=OdometryConfig.exact())
+    assert [d.choice for d in scripted.decisions[:2]] == [TurnChoice.RIGHT, TurnChoice.LEFT]
+    # at the second junction (bottom T, from the stem) left means heading east
+    choices = []
+    for _ in range(2):
+        f = HallFollower(HallFollowerConfig(policy=TurnPolicy.RANDOM), np.random.default_rng(5))
+        simulate(loop_world(), f, 80.0, odometry=OdometryConfig.exact())
+        choices.append([d.choice for d in f.decisions])
+    assert choices[0] == choices[1] and len(choices[0]) >= 2
+    with pytest.raises(HallFollowerError, match="Generator"):
+        HallFollower(HallFollowerConfig(policy=TurnPolicy.RANDOM))
+
+
+def test_strategy_records_go_and_rot_in_table_1_units_and_resets() -> None:
+    follower = HallFollower(HallFollowerConfig(policy=TurnPolicy.RIGHT_HAND))
+    run = simulate(loop_world(), follower, 30.0, odometry=OdometryConfig.exact())
+    steps = follower.strategy().steps
+    assert steps[0].kind is PrimitiveKind.GO
+    assert steps[1].kind is PrimitiveKind.ROT and abs(steps[1].value - 270) <= 3
+    # the first Go is the straight run from x = 5 m to the junction's middle (x ~ 13 m)
+    assert 700 <= steps[0].value <= 900
+    total_cm = sum(s.value for s in steps if s.kind is PrimitiveKind.GO)
+    assert total_cm == pytest.approx(run.robot.distance_m * 100.0, rel=0.02)
+    follower.reset_strategy()
+    assert str(follower.strategy()) == ""
+    # keep going: the record restarts at the reset pose
+    rng = np.random.default_rng(0)
+    sonar = SonarModel(SonarConfig(ideal=True))
+    world = loop_world()
+    start_y = run.robot.odom_pose.y
+    for k in range(200):
+        if k % STEPS_PER_SCAN == 0:
+            r = sonar.scan(world, run.robot.true_pose, rng)
+            v, w = follower.update(r, sonar.angles_rad, run.robot.odom_pose, run.robot.time_s)
+        run.robot.step(v, w, DT_S)
+    after = follower.strategy()
+    assert len(after.steps) == 1 and after.steps[0].kind is PrimitiveKind.GO
+    assert after.length_m == pytest.approx(abs(run.robot.odom_pose.y - start_y), abs=0.1)
+
+
+def test_pause_outputs_zero_and_resumes_cleanly() -> None:
+    world = loop_world()
+    sonar = SonarModel(SonarConfig(ideal=True))
+    rng = np.random.default_rng(0)
+    robot = SimRobot(world, world.start_pose, rng, odometry=OdometryConfig.exact())
+    follower = HallFollower()
+    v = w = 0.0
+    for k in range(300):  # 6 s of following
+        if k % STEPS_PER_SCAN == 0:
+            r = sonar.scan(world, robot.true_pose, rng)
+            v, w = follower.update(r, sonar.angles_rad, robot.odom_pose, robot.time_s)
+        robot.step(v, w, DT_S)
+    before = follower.strategy().length_m
+    follower.set_enabled(False)
+    assert follower.state is FollowerState.PAUSED
+    for _ in range(100):  # someone else drives 1 m while the follower is paused
+        r = sonar.scan(world, robot.true_pose, rng)
+        assert follower.update(r, sonar.angles_rad, robot.odom_pose, robot.time_s) == (0.0, 0.0)
+        robot.step(0.5, 0.0, DT_S)
+    assert follower.strategy().length_m == pytest.approx(before, abs=0.01)
+    follower.set_enabled(True)
+    moved = []
+    for k in range(200):
+        if k % STEPS_PER_SCAN == 0:
+            r = sonar.scan(world, robot.true_pose, rng)
+            v, w = follower.update(r, sonar.angles_rad, robot.odom_pose, robot.time_s)
+            moved.append(v)
+        robot.step(v, w, DT_S)
+    assert follower.state is FollowerState.FOLLOW and max(moved) > 0.3
+    assert follower.strategy().length_m > before + 1.0
+
+
+def test_a_door_is_not_taken_for_a_hallway() -> None:
+    rows = [
+        *(["#" * 12 + "....." + "#" * 13] * 3),  # a 5 x 3 m room ...
+        "#" * 14 + "." + "#" * 15,  # ... behind a 1 m door on the left at x = 14-15 m
+        *(["#" + "." * 28 + "#"] * 2),  # the 2 m hallway, y = 1-3 m
+        "#" * 30,
+    ]
+    world = grid_world(rows, Pose2D(2.0, 2.0, 0.0))
+    follower = HallFollower(HallFollowerConfig(policy=TurnPolicy.LEFT_HAND))
+    run = simulate(world, follower, 40.0, odometry=OdometryConfig.exact())
+    assert run.robot.collisions == 0
+    assert run.robot.true_pose.x > 20.0  # went past the door
+    # the door was seen as an opening and chosen (left hand), then recognised as too narrow
+    assert follower.decisions[0].choice is TurnChoice.LEFT
+    assert follower.cancelled_turns == 1
+    assert np.max(run.true_path[:, 1]) < 3.0  # never entered the door
+
+
+def test_bad_input_and_configuration_are_named() -> None:
+    follower = HallFollower()
+    with pytest.raises(HallFollowerError, match="ranges"):
+        follower.update(np.ones(3), np.zeros(4), Pose2D(0, 0, 0), 0.0)
+    with pytest.raises(HallFollowerError, match="t_s"):
+        follower.update(np.ones(3), np.zeros(3), Pose2D(0, 0, 0), math.nan)
+    with pytest.raises(HallFollowerError, match="stop_distance_m"):
+        HallFollowerConfig(stop_distance_m=0.1)
+    with pytest.raises(HallFollowerError, match="script"):
+        HallFollowerConfig(script="left, sideways")
+    with pytest.raises(HallFollowerError, match="policy"):
+        HallFollowerConfig(policy="zigzag")  # type: ignore[arg-type]
+    assert parse_script("l, s ,right;b") == (
+        TurnChoice.LEFT, TurnChoice.STRAIGHT, TurnChoice.RIGHT, TurnChoice.BACK,
+    )
+    assert HallFollowerConfig(policy="random").policy is TurnPolicy.RANDOM  # type: ignore[arg-type]
+    # NaN ranges count as no echo, not as an error
+    v, w = follower.update(np.full(16, np.nan), np.linspace(0, 2 * np.pi, 16, endpoint=False),
+                           Pose2D(0, 0, 0), 0.0)
+    assert math.isfinite(v) and math.isfinite(w)
