@@ -1,0 +1,253 @@
+"""The ONE place converting shared map types <-> ROS 2 messages (standard types only).
+
+- Pose2D <-> geometry_msgs Pose / PoseStamped / PoseWithCovarianceStamped (yaw as a quaternion
+  about z; the 3x3 (x, y, theta) covariance sits at rows/cols 0, 1, 5 of the 6x6 one).
+- The graph -> visualization_msgs/MarkerArray: per island a LINE_LIST of its model and a TEXT
+  label, per edge an ARROW from source to target with its control strategy as TEXT. Islands
+  share no metric frame, so a *display layout* (a Pose2D per island, e.g. from
+  `TopoGraph.display_layout()`, or the simulator's truth when known) places them for viewing
+  only. By default everything is drawn in one display frame (RViz fixed frame
+  `islands_layout`), each island's model placed by its layout pose; with
+  `in_island_frames=True` each island's model and label are stamped in its own frame
+  `island_<id>` with an identity pose (for setups that provide TF for those frames).
+- The graph <-> std_msgs/String holding the versioned JSON document (island_msgs_py.json_io).
+- Islands/edges <-> rcl_interfaces/Parameter items of the graph server's `/topo_graph/add`
+  (a SetParameters request: name `island` or `edge`, a JSON string value).
+- A planned route -> nav_msgs/Path of the island origins (identity pose in each island frame).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import (
+    Point,
+    Pose,
+    PoseStamped,
+    PoseWithCovariance,
+    PoseWithCovarianceStamped,
+    Quaternion,
+)
+from nav_msgs.msg import Path
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from std_msgs.msg import ColorRGBA, Header, String
+from visualization_msgs.msg import Marker, MarkerArray
+
+from island_msgs_py import json_io
+from island_msgs_py.types import Edge, Island, IslandTypeError, Pose2D
+
+DISPLAY_FRAME = "islands_layout"  # display-only frame of the marker layout
+ISLAND_PARAM = "island"
+EDGE_PARAM = "edge"
+_COV_INDEX = (0, 1, 5)  # x, y, yaw rows/cols of ROS's 6x6 pose covariance
+_LINE_WIDTH_M = 0.08
+_TEXT_HEIGHT_M = 0.5
+_GRID_SPACING_M = 15.0  # fallback layout spacing when nothing better is known
+_MODEL_COLOUR = ColorRGBA(r=0.1, g=0.45, b=0.9, a=1.0)
+_EDGE_COLOUR = ColorRGBA(r=0.9, g=0.5, b=0.1, a=0.9)
+_TEXT_COLOUR = ColorRGBA(r=0.1, g=0.1, b=0.1, a=1.0)
+
+
+# ----------------------------------------------------------------------------- poses
+
+
+def yaw_to_quaternion(theta_rad: float) -> Quaternion:
+    """A rotation of theta [rad] about z."""
+    return Quaternion(x=0.0, y=0.0, z=math.sin(theta_rad / 2.0), w=math.cos(theta_rad / 2.0))
+
+
+def quaternion_to_yaw(q: Quaternion) -> float:
+    """Yaw [rad] in (-pi, pi] of a quaternion (normalized first; roll/pitch are ignored)."""
+    vals = (q.x, q.y, q.z, q.w)
+    if not all(math.isfinite(v) for v in vals):
+        raise IslandTypeError(f"quaternion has a NaN or infinite component: {vals}")
+    norm = math.sqrt(sum(v * v for v in vals))
+    if norm < 1e-9:
+        raise IslandTypeError("quaternion has zero length")
+    x, y, z, w = (v / norm for v in vals)
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return math.pi if yaw == -math.pi else yaw
+
+
+def pose2d_to_pose(p: Pose2D) -> Pose:
+    return Pose(position=Point(x=float(p.x), y=float(p.y), z=0.0),
+                orientation=yaw_to_quaternion(p.theta))
+
+
+def pose_to_pose2d(msg: Pose) -> Pose2D:
+    """x, y [m] and yaw [rad]; raises IslandTypeError on NaN or a zero quaternion."""
+    return Pose2D(float(msg.position.x), float(msg.position.y), quaternion_to_yaw(msg.orientation))
+
+
+def pose2d_to_pose_stamped(p: Pose2D, frame_id: str, stamp: Time | None = None) -> PoseStamped:
+    header = Header(frame_id=frame_id, stamp=stamp or Time())
+    return PoseStamped(header=header, pose=pose2d_to_pose(p))
+
+
+def pose2d_to_pose_with_covariance_stamped(
+    p: Pose2D, frame_id: str, cov_xyt: np.ndarray | None = None, stamp: Time | None = None
+) -> PoseWithCovarianceStamped:
+    """`cov_xyt`: 3x3 covariance of (x [m], y [m], theta [rad]); unknown entries are 0."""
+    cov6 = np.zeros((6, 6))
+    if cov_xyt is not None:
+        c = np.asarray(cov_xyt, dtype=np.float64)
+        if c.shape != (3, 3) or not np.all(np.isfinite(c)):
+            raise IslandTypeError(f"covariance: expected a finite 3x3 array, got shape {c.shape}")
+        cov6[np.ix_(_COV_INDEX, _COV_INDEX)] = c
+    return PoseWithCovarianceStamped(
+        header=Header(frame_id=frame_id, stamp=stamp or Time()),
+        pose=PoseWithCovariance(pose=pose2d_to_pose(p), covariance=cov6.reshape(-1).tolist()),
+    )
+
+
+def pose_with_covariance_stamped_to_pose2d(
+    msg: PoseWithCovarianceStamped,
+) -> tuple[Pose2D, np.ndarray, str]:
+    """(pose, 3x3 covariance of x, y, theta, frame id)."""
+    cov6 = np.asarray(msg.pose.covariance, dtype=np.float64).reshape(6, 6)
+    return pose_to_pose2d(msg.pose.pose), cov6[np.ix_(_COV_INDEX, _COV_INDEX)].copy(), \
+        msg.header.frame_id
+
+
+# ----------------------------------------------------------------------------- graph as JSON
+
+
+def graph_to_string_msg(islands: Iterable[Island], edges: Iterable[Edge]) -> String:
+    return String(data=json_io.graph_to_json(islands, edges))
+
+
+def string_msg_to_graph(msg: String) -> tuple[list[Island], list[Edge]]:
+    """Validated islands and edges; raises json_io.GraphFormatError naming the bad field."""
+    return json_io.graph_from_json(msg.data)
+
+
+def island_to_parameter(island: Island) -> Parameter:
+    return Parameter(name=ISLAND_PARAM, value=ParameterValue(
+        type=ParameterType.PARAMETER_STRING, string_value=json_io.island_to_json(island)))
+
+
+def edge_to_parameter(edge: Edge) -> Parameter:
+    return Parameter(name=EDGE_PARAM, value=ParameterValue(
+        type=ParameterType.PARAMETER_STRING, string_value=json_io.edge_to_json(edge)))
+
+
+def parameter_to_item(param: Parameter, path: str = "parameter") -> Island | Edge:
+    """Decode one `/topo_graph/add` item; raises json_io.GraphFormatError when malformed."""
+    if param.name not in (ISLAND_PARAM, EDGE_PARAM):
+        raise json_io.GraphFormatError(
+            f"{path}.name", f"expected {ISLAND_PARAM!r} or {EDGE_PARAM!r}, got {param.name!r}")
+    if param.value.type != ParameterType.PARAMETER_STRING:
+        raise json_io.GraphFormatError(
+            f"{path}.value", f"expected a string (type {ParameterType.PARAMETER_STRING}) holding "
+            f"JSON, got parameter type {param.value.type}")
+    if param.name == ISLAND_PARAM:
+        return json_io.island_from_json(param.value.string_value, param.name)
+    return json_io.edge_from_json(param.value.string_value, param.name)
+
+
+# ----------------------------------------------------------------------------- routes
+
+
+def route_to_path(route: Sequence[Island], stamp: Time | None = None) -> Path:
+    """The island origins in route order: identity pose stamped in each island's own frame."""
+    st = stamp or Time()
+    origin = Pose2D(0.0, 0.0, 0.0)
+    poses = [pose2d_to_pose_stamped(origin, i.frame_id, st) for i in route]
+    frame = route[0].frame_id if route else ""
+    return Path(header=Header(frame_id=frame, stamp=st), poses=poses)
+
+
+def path_to_island_frames(path: Path) -> list[str]:
+    return [p.header.frame_id for p in path.poses]
+
+
+# ----------------------------------------------------------------------------- markers
+
+
+def grid_layout(islands: Sequence[Island], spacing_m: float = _GRID_SPACING_M) -> dict[int, Pose2D]:
+    """Fallback display layout: the truth when every island has it, else a square grid."""
+    if islands and all(i.origin_truth is not None for i in islands):
+        return {i.id: i.origin_truth for i in islands if i.origin_truth is not None}
+    side = max(1, math.ceil(math.sqrt(len(islands))))
+    return {isl.id: Pose2D((k % side) * spacing_m, (k // side) * spacing_m, 0.0)
+            for k, isl in enumerate(sorted(islands, key=lambda i: i.id))}
+
+
+def _marker(header: Header, ns: str, mid: int, mtype: int, pose: Pose2D) -> Marker:
+    m = Marker(header=header, ns=ns, id=mid, type=mtype, action=Marker.ADD)
+    m.pose = pose2d_to_pose(pose)
+    return m
+
+
+def graph_to_marker_array(
+    islands: Iterable[Island],
+    edges: Iterable[Edge],
+    layout: Mapping[int, Pose2D] | None = None,
+    display_frame: str = DISPLAY_FRAME,
+    in_island_frames: bool = False,
+    stamp: Time | None = None,
+) -> MarkerArray:
+    """Markers for viewers; the first one is DELETEALL so removed islands disappear.
+
+    Namespaces: `island_models` (LINE_LIST, id = island id), `island_labels` (TEXT),
+    `edges` (ARROW source -> target in the display frame), `edge_labels` (TEXT: strategy).
+    """
+    isl = sorted(islands, key=lambda i: i.id)
+    lay = dict(layout) if layout is not None else grid_layout(isl)
+    missing = [i.id for i in isl if i.id not in lay]
+    if missing:
+        raise IslandTypeError(f"display layout has no pose for islands {missing[:5]}")
+    st = stamp or Time()
+    display = Header(frame_id=display_frame, stamp=st)
+    out = [Marker(header=display, ns="", id=0, action=Marker.DELETEALL)]
+    identity = Pose2D(0.0, 0.0, 0.0)
+    for i in isl:
+        if in_island_frames:
+            header, pose = Header(frame_id=i.frame_id, stamp=st), identity
+        else:
+            header, pose = display, lay[i.id]
+        m = _marker(header, "island_models", i.id, Marker.LINE_LIST, pose)
+        m.scale.x = _LINE_WIDTH_M
+        m.color = _MODEL_COLOUR
+        ends = i.model.segments.reshape(-1, 2)
+        m.points = [Point(x=float(x), y=float(y), z=0.0) for x, y in ends]
+        out.append(m)
+        t = _marker(header, "island_labels", i.id, Marker.TEXT_VIEW_FACING, pose)
+        t.pose.position.z = 0.5
+        t.scale.z = _TEXT_HEIGHT_M
+        t.color = _TEXT_COLOUR
+        t.text = f"{i.frame_id} ({i.model_type.value}, R={i.r:.2f})"
+        out.append(t)
+    for k, e in enumerate(sorted(edges, key=lambda e: (e.source, e.target))):
+        if e.source not in lay or e.target not in lay:
+            raise IslandTypeError(f"edge {e.source}->{e.target}: island missing from the layout")
+        a, b = lay[e.source], lay[e.target]
+        m = Marker(header=display, ns="edges", id=k, type=Marker.ARROW, action=Marker.ADD)
+        m.pose.orientation.w = 1.0
+        m.points = [Point(x=a.x, y=a.y, z=0.0), Point(x=b.x, y=b.y, z=0.0)]
+        m.scale.x, m.scale.y, m.scale.z = 0.1, 0.3, 0.4  # shaft, head diameter, head length [m]
+        m.color = _EDGE_COLOUR
+        out.append(m)
+        t = Marker(header=display, ns="edge_labels", id=k, type=Marker.TEXT_VIEW_FACING,
+                   action=Marker.ADD)
+        t.pose = pose2d_to_pose(Pose2D((a.x + b.x) / 2, (a.y + b.y) / 2, 0.0))
+        t.pose.position.z = 0.3
+        t.scale.z = _TEXT_HEIGHT_M * 0.8
+        t.color = _EDGE_COLOUR
+        t.text = f"{e.source}->{e.target}: {e.strategy}" if e.strategy.steps else \
+            f"{e.source}->{e.target}"
+        out.append(t)
+    return MarkerArray(markers=out)
+
+
+def marker_array_to_models(msg: MarkerArray) -> dict[int, np.ndarray]:
+    """Island id -> (N, 4) model segments [m] in the island frame, read back from the markers."""
+    out: dict[int, np.ndarray] = {}
+    for m in msg.markers:
+        if m.ns == "island_models" and m.type == Marker.LINE_LIST and m.action == Marker.ADD:
+            pts = np.array([[p.x, p.y] for p in m.points], dtype=np.float64).reshape(-1, 4)
+            out[int(m.id)] = pts
+    return out
