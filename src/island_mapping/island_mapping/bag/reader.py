@@ -207,8 +207,8 @@ class BagReader:
             reader = make_reader(fh, validate_crcs=True)
             it = reader.iter_messages(
                 topics=sorted(wanted) if wanted is not None else None,
-                start_time=start_ns,
-                end_time=end_ns,
+                starting_at=start_ns,
+                ending_before=end_ns,
                 log_time_order=True,
             )
             while True:
