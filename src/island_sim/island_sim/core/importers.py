@@ -1,0 +1,586 @@
+"""Turn floor plans into line-segment worlds (numpy/scipy and the standard library only).
+
+- Occupancy images (binary/ASCII PGM, 8/16-bit PNG): dark pixels are walls. The boundary between
+  occupied and free pixels is traced into closed contours (8-connected walls), which are then
+  simplified with Douglas-Peucker, so a diagonal wall becomes one segment instead of a staircase
+  and every wall stays a closed outline that no ray can slip through.
+- HouseExpo JSON: `verts` is a closed wall polygon in metres.
+- `grid_to_segments` is also used by the built-in worlds (free rectangles rasterized on a grid).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+import zlib
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from island_msgs_py.types import FloatArray, Pose2D
+from scipy import ndimage
+
+from island_sim.core.world import World, WorldError
+
+BoolArray = npt.NDArray[np.bool_]
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+# Bearings tried when choosing the start heading (the longest free ray wins) [-].
+_START_BEARINGS = 72
+
+
+@dataclass(frozen=True)
+class ImageImportConfig:
+    """How an occupancy image becomes a world (the ROS map_server conventions)."""
+
+    resolution_m: float = field(default=0.1, metadata={"help": "pixel size [m/px]"})
+    occupied_thresh: float = field(
+        default=0.65,
+        metadata={"help": "a pixel is a wall when (255 - value) / 255 exceeds this [-]"},
+    )
+    free_thresh: float = field(
+        default=0.1,
+        metadata={"help": "a pixel is known free when (255 - value) / 255 is below this [-]; "
+                  "used only to choose the start pose"},
+    )
+    simplify_tol_px: float = field(
+        default=1.0,
+        metadata={"help": "Douglas-Peucker tolerance of traced wall outlines [px]"},
+    )
+    origin_x_m: float = field(
+        default=0.0, metadata={"help": "world x of the image's lower-left corner [m]"}
+    )
+    origin_y_m: float = field(
+        default=0.0, metadata={"help": "world y of the image's lower-left corner [m]"}
+    )
+
+    def __post_init__(self) -> None:
+        for name in ("resolution_m", "simplify_tol_px", "origin_x_m", "origin_y_m"):
+            v = getattr(self, name)
+            if not math.isfinite(v):
+                raise WorldError(f"ImageImportConfig.{name}: expected a finite number, got {v!r}")
+        if self.resolution_m <= 0:
+            raise WorldError(
+                f"ImageImportConfig.resolution_m: must be > 0, got {self.resolution_m}"
+            )
+        if self.simplify_tol_px < 0:
+            raise WorldError(
+                f"ImageImportConfig.simplify_tol_px: must be >= 0, got {self.simplify_tol_px}"
+            )
+        for name in ("occupied_thresh", "free_thresh"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= 1.0:
+                raise WorldError(f"ImageImportConfig.{name}: must be in [0, 1], got {v!r}")
+
+
+# ----------------------------------------------------------------------------- image readers
+
+
+def read_pgm(path: Path) -> npt.NDArray[np.uint8]:
+    """(H, W) grey levels 0-255 of a P5 (binary) or P2 (ASCII) PGM; row 0 is the top."""
+    data = _read_bytes(path)
+    magic = data[:2]
+    if magic not in (b"P5", b"P2"):
+        raise WorldError(f"{path}: not a PGM image (magic {magic!r}, expected P5 or P2)")
+    tokens: list[bytes] = []
+    pos = 2
+    # Header: width, height, maxval, separated by whitespace, with '#' comments.
+    while len(tokens) < 3:
+        while pos < len(data) and data[pos : pos + 1].isspace():
+            pos += 1
+        if pos >= len(data):
+            raise WorldError(f"{path}: truncated PGM header")
+        if data[pos : pos + 1] == b"#":
+            nl = data.find(b"\n", pos)
+            pos = len(data) if nl < 0 else nl + 1
+            continue
+        start = pos
+        while pos < len(data) and not data[pos : pos + 1].isspace():
+            pos += 1
+        tokens.append(data[start:pos])
+    try:
+        width, height, maxval = (int(t) for t in tokens)
+    except ValueError as exc:
+        raise WorldError(f"{path}: bad PGM header {tokens!r}") from exc
+    if width <= 0 or height <= 0 or not 0 < maxval < 65536:
+        raise WorldError(f"{path}: bad PGM size {width}x{height} or maxval {maxval}")
+    count = width * height
+    if magic == b"P5":
+        pos += 1  # exactly one whitespace byte after maxval
+        dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
+        raw = data[pos : pos + count * dtype.itemsize]
+        if len(raw) < count * dtype.itemsize:
+            raise WorldError(f"{path}: PGM pixel data truncated ({len(raw)} bytes)")
+        img = np.frombuffer(raw, dtype=dtype).astype(np.float64)
+    else:
+        try:
+            img = np.array(data[pos:].split()[:count], dtype=np.float64)
+        except ValueError as exc:
+            raise WorldError(f"{path}: bad ASCII PGM pixel value") from exc
+        if img.size < count:
+            raise WorldError(f"{path}: PGM pixel data truncated ({img.size} of {count} values)")
+    scaled = np.clip(np.round(img * (255.0 / maxval)), 0, 255).astype(np.uint8)
+    return scaled.reshape(height, width)
+
+
+def read_png(path: Path) -> npt.NDArray[np.uint8]:
+    """(H, W) grey levels 0-255 of a non-interlaced 8/16-bit PNG (grey, RGB, palette, +alpha)."""
+    data = _read_bytes(path)
+    if not data.startswith(_PNG_SIGNATURE):
+        raise WorldError(f"{path}: not a PNG image (bad signature)")
+    pos = len(_PNG_SIGNATURE)
+    header: tuple[int, ...] | None = None
+    palette: bytes | None = None
+    idat = bytearray()
+    while pos + 8 <= len(data):
+        (length,) = struct.unpack(">I", data[pos : pos + 4])
+        ctype = data[pos + 4 : pos + 8]
+        body = data[pos + 8 : pos + 8 + length]
+        if len(body) < length:
+            raise WorldError(f"{path}: PNG chunk {ctype!r} truncated")
+        pos += 12 + length
+        if ctype == b"IHDR":
+            header = struct.unpack(">IIBBBBB", body[:13])
+        elif ctype == b"PLTE":
+            palette = body
+        elif ctype == b"IDAT":
+            idat += body
+        elif ctype == b"IEND":
+            break
+    if header is None:
+        raise WorldError(f"{path}: PNG without IHDR chunk")
+    width, height, depth, color, _comp, _filt, interlace = header
+    channels = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}.get(color)
+    if channels is None or depth not in (8, 16) or (color == 3 and depth != 8):
+        raise WorldError(
+            f"{path}: unsupported PNG (colour type {color}, bit depth {depth}); "
+            "use 8 or 16-bit grey, RGB or 8-bit palette"
+        )
+    if interlace:
+        raise WorldError(f"{path}: interlaced PNG is not supported")
+    try:
+        raw = zlib.decompress(bytes(idat))
+    except zlib.error as exc:
+        raise WorldError(f"{path}: corrupt PNG image data ({exc})") from exc
+    bpp = channels * depth // 8
+    stride = width * bpp
+    if len(raw) < height * (stride + 1):
+        raise WorldError(f"{path}: PNG image data truncated")
+    rows = _png_unfilter(np.frombuffer(raw, dtype=np.uint8), height, stride, bpp, path)
+    if depth == 16:
+        px = rows.reshape(height, width, channels, 2)[..., 0].astype(np.float64)  # high bytes
+    else:
+        px = rows.reshape(height, width, channels).astype(np.float64)
+    if color == 3:
+        if palette is None:
+            raise WorldError(f"{path}: palette PNG without PLTE chunk")
+        pal = np.frombuffer(palette, dtype=np.uint8).reshape(-1, 3).astype(np.float64)
+        idx = px[..., 0].astype(np.int64)
+        if idx.max() >= pal.shape[0]:
+            raise WorldError(f"{path}: PNG palette index out of range")
+        grey = pal[idx].mean(axis=2)
+    elif color in (2, 6):
+        grey = px[..., :3].mean(axis=2)
+    else:
+        grey = px[..., 0]
+    return np.clip(np.round(grey), 0, 255).astype(np.uint8)
+
+
+def _png_unfilter(
+    raw: npt.NDArray[np.uint8], height: int, stride: int, bpp: int, path: Path
+) -> npt.NDArray[np.uint8]:
+    """Undo the per-row PNG filters; returns (height, stride) bytes."""
+    out = np.zeros((height, stride), dtype=np.uint8)
+    prev = np.zeros(stride, dtype=np.int64)
+    for y in range(height):
+        base = y * (stride + 1)
+        ftype = int(raw[base])
+        line = raw[base + 1 : base + 1 + stride].astype(np.int64)
+        if ftype == 0:
+            cur = line
+        elif ftype == 2:  # Up
+            cur = (line + prev) & 0xFF
+        elif ftype in (1, 3, 4):  # Sub, Average, Paeth depend on the left neighbour: per byte
+            cur = np.zeros(stride, dtype=np.int64)
+            lv, pv = line.tolist(), prev.tolist()
+            cv = [0] * stride
+            for i in range(stride):
+                left = cv[i - bpp] if i >= bpp else 0
+                up = pv[i]
+                if ftype == 1:
+                    pred = left
+                elif ftype == 3:
+                    pred = (left + up) >> 1
+                else:
+                    ul = pv[i - bpp] if i >= bpp else 0
+                    p = left + up - ul
+                    pa, pb, pc = abs(p - left), abs(p - up), abs(p - ul)
+                    pred = left if pa <= pb and pa <= pc else (up if pb <= pc else ul)
+                cv[i] = (lv[i] + pred) & 0xFF
+            cur = np.array(cv, dtype=np.int64)
+        else:
+            raise WorldError(f"{path}: bad PNG filter type {ftype} in row {y}")
+        out[y] = cur.astype(np.uint8)
+        prev = cur
+    return out
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise WorldError(f"{path}: cannot read ({exc.strerror or exc})") from exc
+
+
+# ----------------------------------------------------------------------------- contour tracing
+
+
+def grid_to_segments(
+    occupied: npt.ArrayLike,
+    resolution_m: float,
+    origin_m: tuple[float, float] = (0.0, 0.0),
+    simplify_tol_px: float = 1.0,
+    outside_occupied: bool = False,
+) -> FloatArray:
+    """(N, 4) wall segments [m] along the boundary between occupied and free cells.
+
+    occupied: (H, W) bool grid with row 0 at the BOTTOM (y up); cell (i, j) covers
+    x in origin_x + [j, j + 1] * resolution, y in origin_y + [i, i + 1] * resolution.
+    Outlines go counter-clockwise around occupied regions (8-connected: diagonal neighbours are
+    one wall) and are simplified with Douglas-Peucker at `simplify_tol_px` [px] (0: only merge
+    collinear runs). `outside_occupied` says what lies beyond the grid.
+    """
+    g = np.asarray(occupied, dtype=bool)
+    if g.ndim != 2:
+        raise WorldError(f"occupancy grid: expected a 2-D array, got shape {g.shape}")
+    loops = _trace_loops(np.pad(g, 1, constant_values=outside_occupied))
+    segs: list[FloatArray] = []
+    for loop in loops:
+        pts = _simplify_closed(_corners(loop), simplify_tol_px)
+        if pts.shape[0] < 2:
+            continue
+        nxt = np.roll(pts, -1, axis=0)
+        seg = np.hstack([pts, nxt])
+        seg = seg[np.any(seg[:, 0:2] != seg[:, 2:4], axis=1)]
+        segs.append(seg)
+    if not segs:
+        return np.zeros((0, 4))
+    out = np.vstack(segs) - 1.0  # undo the padding
+    out = out * resolution_m + np.array([origin_m[0], origin_m[1], origin_m[0], origin_m[1]])
+    return _dedupe(out)
+
+
+def _dedupe(segs: FloatArray) -> FloatArray:
+    """Drop exact duplicates (including reversed copies) of segments."""
+    if segs.shape[0] == 0:
+        return segs
+    a, b = segs[:, 0:2], segs[:, 2:4]
+    swap = (a[:, 0] > b[:, 0]) | ((a[:, 0] == b[:, 0]) & (a[:, 1] > b[:, 1]))
+    canon = np.where(swap[:, None], np.hstack([b, a]), segs)
+    _, first = np.unique(canon, axis=0, return_index=True)
+    return segs[np.sort(first)]
+
+
+def _trace_loops(g: BoolArray) -> list[npt.NDArray[np.int64]]:
+    """Closed boundary loops (lattice vertices (x, y), y up) around the True cells of `g`."""
+    w = g.shape[1]
+    span = w + 1
+    starts: list[npt.NDArray[np.int64]] = []
+    ends: list[npt.NDArray[np.int64]] = []
+    # Horizontal lattice edges at y = k + 1 between cells (k, j) below and (k + 1, j) above.
+    below, above = g[:-1, :], g[1:, :]
+    k, j = np.nonzero(above & ~below)  # wall above: walk +x
+    starts.append((k + 1) * span + j)
+    ends.append((k + 1) * span + j + 1)
+    k, j = np.nonzero(below & ~above)  # wall below: walk -x
+    starts.append((k + 1) * span + j + 1)
+    ends.append((k + 1) * span + j)
+    # Vertical lattice edges at x = j + 1 between cells (i, j) left and (i, j + 1) right.
+    left, right = g[:, :-1], g[:, 1:]
+    i, j = np.nonzero(left & ~right)  # wall left: walk +y
+    starts.append(i * span + j + 1)
+    ends.append((i + 1) * span + j + 1)
+    i, j = np.nonzero(right & ~left)  # wall right: walk -y
+    starts.append((i + 1) * span + j + 1)
+    ends.append(i * span + j + 1)
+    s = np.concatenate(starts).astype(np.int64)
+    e = np.concatenate(ends).astype(np.int64)
+    if s.size == 0:
+        return []
+    # Out-edges per start vertex (at most two, at a saddle where walls touch diagonally).
+    order = np.argsort(s, kind="stable")
+    s_sorted = s[order]
+    first = np.searchsorted(s_sorted, e, side="left")
+    last = np.searchsorted(s_sorted, e, side="right")
+    sx, sy = s % span, s // span
+    ex, ey = e % span, e // span
+    dx, dy = ex - sx, ey - sy
+    nxt = np.empty(s.size, dtype=np.int64)
+    single = last - first == 1
+    nxt[single] = order[first[single]]
+    for idx in np.flatnonzero(~single):
+        cands = order[first[idx] : last[idx]].tolist()
+        if not cands:
+            raise WorldError("occupancy grid: broken wall outline (internal error)")
+        # At a saddle take the right turn, which joins diagonal wall cells into one outline.
+        right_turn = (dy[idx], -dx[idx])
+        pick = cands[0]
+        for c in cands:
+            if (dx[c], dy[c]) == right_turn:
+                pick = c
+        nxt[idx] = pick
+    seen = np.zeros(s.size, dtype=bool)
+    nxt_list = nxt.tolist()
+    loops: list[npt.NDArray[np.int64]] = []
+    for e0 in range(s.size):
+        if seen[e0]:
+            continue
+        chain = []
+        cur = e0
+        while not seen[cur]:
+            seen[cur] = True
+            chain.append(cur)
+            cur = nxt_list[cur]
+        ids = s[np.array(chain, dtype=np.int64)]
+        loops.append(np.stack([ids % span, ids // span], axis=1))
+    return loops
+
+
+def _corners(loop: npt.NDArray[np.int64]) -> FloatArray:
+    """The vertices of a closed lattice loop where its direction changes."""
+    pts = loop.astype(np.float64)
+    d_in = pts - np.roll(pts, 1, axis=0)
+    d_out = np.roll(pts, -1, axis=0) - pts
+    turn = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0] != 0
+    corners = pts[turn]
+    return corners if corners.shape[0] >= 2 else pts[:1]
+
+
+def _simplify_closed(pts: FloatArray, tol: float) -> FloatArray:
+    """Douglas-Peucker on a closed polygon: split at vertex 0 and the vertex farthest from it."""
+    n = pts.shape[0]
+    if n <= 3 or tol <= 0:
+        return pts
+    far = int(np.argmax(np.sum((pts - pts[0]) ** 2, axis=1)))
+    a = _douglas_peucker(pts[: far + 1], tol)
+    b = _douglas_peucker(np.vstack([pts[far:], pts[:1]]), tol)
+    return np.vstack([a[:-1], b[:-1]])
+
+
+def _douglas_peucker(pts: FloatArray, tol: float) -> FloatArray:
+    """Douglas-Peucker simplification of an open polyline (keeps both ends)."""
+    n = pts.shape[0]
+    keep = np.zeros(n, dtype=bool)
+    keep[0] = keep[-1] = True
+    stack = [(0, n - 1)]
+    while stack:
+        i0, i1 = stack.pop()
+        if i1 - i0 < 2:
+            continue
+        mid = pts[i0 + 1 : i1]
+        d = _point_segment_distance(mid, pts[i0], pts[i1])
+        k = int(np.argmax(d))
+        if d[k] > tol:
+            km = i0 + 1 + k
+            keep[km] = True
+            stack.append((i0, km))
+            stack.append((km, i1))
+    return pts[keep]
+
+
+def _point_segment_distance(p: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    ab = b - a
+    den = float(ab @ ab)
+    if den == 0.0:
+        return np.linalg.norm(p - a, axis=1)
+    t = np.clip(((p - a) @ ab) / den, 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
+
+
+# ----------------------------------------------------------------------------- start poses
+
+
+def start_pose_from_clearance(
+    world_segments: FloatArray,
+    candidates_m: FloatArray,
+    clearance_m: FloatArray,
+    raycast: Callable[[FloatArray, FloatArray], FloatArray],
+) -> Pose2D:
+    """The candidate point with the largest clearance, facing its longest free ray.
+
+    candidates_m: (K, 2) points [m]; clearance_m: (K,) [m]; raycast(origins, angles) -> ranges.
+    """
+    if candidates_m.shape[0] == 0:
+        raise WorldError("cannot choose a start pose: no free space found")
+    best = int(np.argmax(clearance_m))
+    x, y = (float(v) for v in candidates_m[best])
+    bearings = np.linspace(-math.pi, math.pi, _START_BEARINGS, endpoint=False)
+    ranges = raycast(np.array([[x, y]]), bearings)
+    ranges = np.where(np.isfinite(ranges), ranges, -1.0)
+    return Pose2D(x, y, float(bearings[int(np.argmax(ranges))]))
+
+
+def enclosed_start_pose(world: World, step_m: float = 0.25) -> Pose2D:
+    """A start pose for a world without one: the enclosed grid point farthest from any wall.
+
+    A point is enclosed when rays in 8 directions all hit a wall.
+    """
+    if world.segments.shape[0] == 0:
+        return Pose2D(0.0, 0.0, 0.0)
+    x0, y0, x1, y1 = world.bounds
+    nx = max(2, min(200, int((x1 - x0) / step_m)))
+    ny = max(2, min(200, int((y1 - y0) / step_m)))
+    gx, gy = np.meshgrid(np.linspace(x0, x1, nx + 2)[1:-1], np.linspace(y0, y1, ny + 2)[1:-1])
+    pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    clearance = _clearance(pts, world.segments)
+    order = np.argsort(-clearance)[:400]  # only the most open points need the enclosure test
+    pts, clearance = pts[order], clearance[order]
+    dirs = np.linspace(0.0, 2.0 * math.pi, 8, endpoint=False)
+    hits = world.raycast(np.repeat(pts, 8, axis=0), np.tile(dirs, pts.shape[0]))
+    enclosed = np.all(np.isfinite(hits.distance_m.reshape(-1, 8)), axis=1)
+    if not np.any(enclosed):
+        enclosed[:] = True
+    return start_pose_from_clearance(
+        world.segments, pts[enclosed], clearance[enclosed],
+        lambda o, a: world.raycast(o, a).distance_m,
+    )
+
+
+def _clearance(pts: FloatArray, segs: FloatArray) -> FloatArray:
+    """(K,) distance [m] from each point to the nearest segment."""
+    out = np.full(pts.shape[0], np.inf)
+    a, ab = segs[:, 0:2], segs[:, 2:4] - segs[:, 0:2]
+    den = np.maximum(np.sum(ab * ab, axis=1), 1e-300)
+    step = max(1, (1 << 20) // max(1, segs.shape[0]))
+    for s in range(0, pts.shape[0], step):
+        p = pts[s : s + step, None, :]
+        t = np.clip(np.sum((p - a) * ab, axis=2) / den, 0.0, 1.0)
+        d = np.linalg.norm(p - (a + t[:, :, None] * ab), axis=2)
+        out[s : s + step] = d.min(axis=1)
+    return out
+
+
+# ----------------------------------------------------------------------------- importers
+
+
+def import_image(path: str | Path, config: ImageImportConfig | None = None) -> World:
+    """World from an occupancy image (.pgm/.png): dark pixels are walls, origin lower-left."""
+    cfg = config if config is not None else ImageImportConfig()
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix == ".pgm":
+        img = read_pgm(p)
+    elif suffix == ".png":
+        img = read_png(p)
+    else:
+        raise WorldError(f"{p}: unknown image extension {p.suffix!r} (use .pgm or .png)")
+    grid = img[::-1, :].astype(np.float64)  # row 0 at the bottom
+    occ_prob = (255.0 - grid) / 255.0
+    occupied = occ_prob > cfg.occupied_thresh
+    if not np.any(occupied):
+        raise WorldError(f"{p}: no occupied (dark) pixels, so no walls")
+    origin = (cfg.origin_x_m, cfg.origin_y_m)
+    segs = grid_to_segments(occupied, cfg.resolution_m, origin, cfg.simplify_tol_px)
+    free = occ_prob < cfg.free_thresh
+    world = World(segs, name=p.stem)
+    if not np.any(free):
+        return World(segs, name=p.stem, start_pose=enclosed_start_pose(world))
+    # Clearance of free pixels from anything that is not known free [m].
+    clearance_px = ndimage.distance_transform_edt(np.pad(free, 1))[1:-1, 1:-1]
+    iy, ix = np.nonzero(free)
+    centres = np.stack(
+        [origin[0] + (ix + 0.5) * cfg.resolution_m, origin[1] + (iy + 0.5) * cfg.resolution_m],
+        axis=1,
+    )
+    start = start_pose_from_clearance(
+        segs, centres, clearance_px[iy, ix] * cfg.resolution_m,
+        lambda o, a: world.raycast(o, a).distance_m,
+    )
+    return World(world.segments, name=p.stem, start_pose=start)
+
+
+def import_houseexpo(path: str | Path, data: dict[str, Any] | None = None) -> World:
+    """World from a HouseExpo JSON file: `verts` is a closed wall polygon [m]."""
+    p = Path(path)
+    if data is None:
+        from island_sim.core.world import read_structured  # local: avoids a cycle at import
+
+        data = read_structured(p)
+    verts = _as_points(data.get("verts"), p, "verts")
+    if verts.shape[0] < 3:
+        raise WorldError(f"{p}: 'verts' needs at least 3 points, got {verts.shape[0]}")
+    nxt = np.roll(verts, -1, axis=0)
+    segs = np.hstack([verts, nxt])
+    segs = segs[np.any(segs[:, 0:2] != segs[:, 2:4], axis=1)]  # repeated vertices
+    if segs.shape[0] < 3:
+        raise WorldError(f"{p}: 'verts' has fewer than 3 distinct points")
+    name = str(data.get("id", p.stem)) or p.stem
+    world = World(segs, name=name)
+    # Start: the interior grid point farthest from the walls.
+    x0, y0, x1, y1 = world.bounds
+    step = 0.1
+    gx, gy = np.meshgrid(np.arange(x0 + step / 2, x1, step), np.arange(y0 + step / 2, y1, step))
+    pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    inside = _inside_polygon(pts, verts)
+    pts = pts[inside]
+    start = start_pose_from_clearance(
+        segs, pts, _clearance(pts, segs), lambda o, a: world.raycast(o, a).distance_m
+    )
+    return World(world.segments, name=name, start_pose=start)
+
+
+def _as_points(value: object, path: Path, key: str) -> FloatArray:
+    if value is None:
+        raise WorldError(f"{path}: missing key {key!r}")
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise WorldError(f"{path}: {key!r} must be a list of [x, y] numbers") from exc
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise WorldError(f"{path}: {key!r} must be a list of [x, y] pairs, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.argwhere(~np.isfinite(arr))[0][0])
+        raise WorldError(f"{path}: {key!r} point {bad} has a NaN or infinite coordinate")
+    return arr
+
+
+def _inside_polygon(pts: FloatArray, poly: FloatArray) -> BoolArray:
+    """Even-odd rule point-in-polygon test for (K, 2) points against a closed (V, 2) polygon."""
+    inside = np.zeros(pts.shape[0], dtype=bool)
+    x, y = pts[:, 0], pts[:, 1]
+    for (ax, ay), (bx, by) in zip(poly, np.roll(poly, -1, axis=0), strict=True):
+        if ay == by:
+            continue
+        crosses = (ay > y) != (by > y)
+        xint = ax + (y - ay) * (bx - ax) / (by - ay)
+        inside ^= crosses & (x < xint)
+    return inside
+
+
+def rectangles_to_segments(
+    free_rects_m: Sequence[tuple[float, float, float, float]], resolution_m: float = 0.25
+) -> FloatArray:
+    """(N, 4) walls [m] around the union of free axis-aligned rectangles (x0, y0, x1, y1).
+
+    Everything outside the rectangles is solid. Rectangle corners must lie on the grid of
+    `resolution_m` so the walls are exact.
+    """
+    r = np.asarray(free_rects_m, dtype=np.float64).reshape(-1, 4)
+    if r.shape[0] == 0:
+        raise WorldError("rectangles_to_segments: no free rectangles")
+    if np.any(r[:, 2] <= r[:, 0]) or np.any(r[:, 3] <= r[:, 1]):
+        raise WorldError("rectangles_to_segments: a rectangle has x1 <= x0 or y1 <= y0")
+    cells = r / resolution_m
+    if not np.allclose(cells, np.round(cells), atol=1e-9):
+        raise WorldError(f"rectangles_to_segments: corners must be multiples of {resolution_m} m")
+    c = np.round(cells).astype(np.int64)
+    lo = c[:, 0:2].min(axis=0) - 1
+    hi = c[:, 2:4].max(axis=0) + 1
+    occ = np.ones((int(hi[1] - lo[1]), int(hi[0] - lo[0])), dtype=bool)
+    for x0, y0, x1, y1 in c - np.array([lo[0], lo[1], lo[0], lo[1]]):
+        occ[y0:y1, x0:x1] = False
+    origin = (float(lo[0] * resolution_m), float(lo[1] * resolution_m))
+    return grid_to_segments(occ, resolution_m, origin, simplify_tol_px=0.0, outside_occupied=True)
