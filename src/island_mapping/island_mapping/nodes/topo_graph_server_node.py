@@ -1,0 +1,219 @@
+"""topo_graph_server_node: holds the map M = {V, E}, persists it, serves it on standard types.
+
+Topics (latched: reliable, transient local, depth 1; republished after every change):
+  /topo_graph/markers  visualization_msgs/MarkerArray  (display layout, see conversions.py)
+  /topo_graph/json     std_msgs/String                 (the versioned graph JSON document)
+Services:
+  /topo_graph/add   rcl_interfaces/srv/SetParameters  each Parameter named `island` or `edge`
+                    with a JSON string value; add or replace; one result per item
+  /topo_graph/get   std_srvs/srv/Trigger             message = the graph JSON
+  /topo_graph/plan  nav_msgs/srv/GetPlan             start/goal header.frame_id = island frames
+                    (`island_<id>`); plan = the island origins in route order (empty if none)
+  /topo_graph/save  std_srvs/srv/Trigger             writes graph.json/.geojson/.graphml
+See docs/graph_server.md for why these types and how persistence works.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from island_msgs_py.json_io import GraphFormatError
+from island_msgs_py.ros_params import declare_config, ensure_ros_env
+from island_msgs_py.types import Island, IslandTypeError
+from nav_msgs.msg import Path as PathMsg
+from nav_msgs.srv import GetPlan
+from rcl_interfaces.msg import SetParametersResult
+from rcl_interfaces.srv import SetParameters
+from rclpy.context import Context
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter as RclpyParameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
+
+from island_mapping.core.graph import (
+    GraphError,
+    GraphServerConfig,
+    GraphStore,
+    GraphStoreConfig,
+    TopoGraph,
+)
+from island_msgs_py import conversions as cv
+
+NODE_NAME = "topo_graph_server"
+LATCHED = QoSProfile(
+    depth=1,
+    history=HistoryPolicy.KEEP_LAST,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+WARN_THROTTLE_S = 1.0
+MEMORY_EXPORT_DIR = "topo_graph_export"  # save target when in memory and no output_dir
+
+
+class TopoGraphServerNode(Node):
+    def __init__(
+        self,
+        context: Context | None = None,
+        parameter_overrides: list[RclpyParameter] | None = None,
+    ) -> None:
+        super().__init__(NODE_NAME, context=context, parameter_overrides=parameter_overrides)
+        self.config: GraphServerConfig = declare_config(self, "", GraphServerConfig())
+        storage = self.config.storage_path.strip()
+        self.store: GraphStore | None = None
+        if storage:
+            store_cfg = GraphStoreConfig(compact_every=self.config.compact_every)
+            self.store = GraphStore(os.path.expanduser(storage), store_cfg)
+            self.graph = self.store.graph
+        else:
+            self.graph = TopoGraph()
+        self.rejected = 0  # count of rejected add items and failed requests
+        self.markers_pub = self.create_publisher(MarkerArray, "/topo_graph/markers", LATCHED)
+        self.json_pub = self.create_publisher(String, "/topo_graph/json", LATCHED)
+        self.create_service(SetParameters, "/topo_graph/add", self._on_add)
+        self.create_service(Trigger, "/topo_graph/get", self._on_get)
+        self.create_service(GetPlan, "/topo_graph/plan", self._on_plan)
+        self.create_service(Trigger, "/topo_graph/save", self._on_save)
+        where = storage or "memory only"
+        self.get_logger().info(
+            f"graph server: {len(self.graph)} islands, {self.graph.num_edges} edges ({where})"
+        )
+        self.publish()
+
+    # --- publishing ----------------------------------------------------------------------------
+
+    def publish(self) -> None:
+        stamp = self.get_clock().now().to_msg()
+        islands, edges = self.graph.islands(), self.graph.edges()
+        self.markers_pub.publish(cv.graph_to_marker_array(
+            islands, edges, self.graph.display_layout(), self.config.display_frame,
+            self.config.markers_in_island_frames, stamp,
+        ))
+        self.json_pub.publish(cv.graph_to_string_msg(islands, edges))
+
+    # --- changes -------------------------------------------------------------------------------
+
+    def _apply(self, item: Any) -> str:
+        if isinstance(item, Island):
+            replaced = (self.store.put_island(item) if self.store is not None
+                        else self.graph.put_island(item))
+            return f"{'replaced' if replaced else 'added'} island {item.id}"
+        replaced = (self.store.put_edge(item) if self.store is not None
+                    else self.graph.put_edge(item))
+        return f"{'replaced' if replaced else 'added'} edge {item.source}->{item.target}"
+
+    def _on_add(self, request: SetParameters.Request, response: SetParameters.Response) -> Any:
+        changed = False
+        for k, param in enumerate(request.parameters):
+            try:
+                item = cv.parameter_to_item(param, f"parameters[{k}]")
+                reason = self._apply(item)
+                changed = True
+                response.results.append(SetParametersResult(successful=True, reason=reason))
+            except (GraphFormatError, GraphError, IslandTypeError) as exc:
+                self._reject(f"/topo_graph/add rejected parameters[{k}]: {exc}")
+                response.results.append(SetParametersResult(successful=False, reason=str(exc)))
+            except Exception as exc:  # e.g. disk full: never die, never acknowledge
+                self._reject(f"/topo_graph/add failed on parameters[{k}]: {exc!r}")
+                response.results.append(
+                    SetParametersResult(successful=False, reason=f"internal error: {exc!r}"))
+        if changed:
+            try:
+                self.publish()
+            except Exception as exc:
+                self.get_logger().error(f"publishing the graph failed: {exc!r}")
+        return response
+
+    def _reject(self, message: str) -> None:
+        self.rejected += 1
+        self.get_logger().warning(message, throttle_duration_sec=WARN_THROTTLE_S)
+
+    # --- queries -------------------------------------------------------------------------------
+
+    def _on_get(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        try:
+            response.message = self.graph.to_json()
+            response.success = True
+        except Exception as exc:
+            response.success, response.message = False, f"internal error: {exc!r}"
+        return response
+
+    def _on_plan(self, request: GetPlan.Request, response: GetPlan.Response) -> Any:
+        stamp = self.get_clock().now().to_msg()
+        response.plan = PathMsg()
+        try:
+            ends = []
+            for name, frame in (("start", request.start.header.frame_id),
+                                ("goal", request.goal.header.frame_id)):
+                island_id = self.graph.island_by_frame(frame)
+                if island_id is None:
+                    raise GraphError(f"plan: {name} frame {frame!r} is not an island frame "
+                                     "(expected island_<id> of a known island)")
+                ends.append(island_id)
+            route = self.graph.plan_route(ends[0], ends[1])
+            response.plan = cv.route_to_path(
+                [self.graph.get_island(i) for i in route.islands], stamp)
+        except GraphError as exc:
+            self.rejected += 1
+            self.get_logger().error(str(exc), throttle_duration_sec=WARN_THROTTLE_S)
+        except Exception as exc:
+            self.rejected += 1
+            self.get_logger().error(f"/topo_graph/plan failed: {exc!r}")
+        return response
+
+    def output_dir(self) -> Path:
+        if self.config.output_dir.strip():
+            return Path(os.path.expanduser(self.config.output_dir.strip()))
+        if self.store is not None:
+            return self.store.directory / "export"
+        return Path.cwd() / MEMORY_EXPORT_DIR
+
+    def _on_save(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        try:
+            paths = self.graph.save_all(self.output_dir())
+            response.success = True
+            response.message = json.dumps({k: str(v) for k, v in paths.items()})
+        except Exception as exc:
+            self.rejected += 1
+            response.success, response.message = False, f"save failed: {exc}"
+            self.get_logger().error(response.message)
+        return response
+
+    def destroy_node(self) -> None:
+        if self.store is not None:
+            self.store.close()
+        super().destroy_node()
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    ensure_ros_env()
+    rclpy.init(args=args)
+    try:
+        node = TopoGraphServerNode()
+    except (GraphFormatError, OSError) as exc:
+        print(f"topo_graph_server_node: cannot load the stored graph: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
