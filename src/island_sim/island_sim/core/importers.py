@@ -431,20 +431,19 @@ def enclosed_start_pose(world: World, step_m: float = 0.25) -> Pose2D:
     if world.segments.shape[0] == 0:
         return Pose2D(0.0, 0.0, 0.0)
     x0, y0, x1, y1 = world.bounds
-    nx = max(2, min(200, int((x1 - x0) / step_m)))
-    ny = max(2, min(200, int((y1 - y0) / step_m)))
+    nx = max(2, min(100, int((x1 - x0) / step_m)))
+    ny = max(2, min(100, int((y1 - y0) / step_m)))
     gx, gy = np.meshgrid(np.linspace(x0, x1, nx + 2)[1:-1], np.linspace(y0, y1, ny + 2)[1:-1])
     pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
-    clearance = _clearance(pts, world.segments)
-    order = np.argsort(-clearance)[:400]  # only the most open points need the enclosure test
-    pts, clearance = pts[order], clearance[order]
     dirs = np.linspace(0.0, 2.0 * math.pi, 8, endpoint=False)
     hits = world.raycast(np.repeat(pts, 8, axis=0), np.tile(dirs, pts.shape[0]))
     enclosed = np.all(np.isfinite(hits.distance_m.reshape(-1, 8)), axis=1)
     if not np.any(enclosed):
         enclosed[:] = True
+    pts = pts[enclosed]
+    clearance = _clearance(pts, world.segments)
     return start_pose_from_clearance(
-        world.segments, pts[enclosed], clearance[enclosed],
+        world.segments, pts, clearance,
         lambda o, a: world.raycast(o, a).distance_m,
     )
 
