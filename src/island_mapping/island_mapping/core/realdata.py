@@ -242,9 +242,9 @@ def match_times(
 class PoseTrack:
     """Poses at every FLASER and ODOM line of a GMapping-corrected CARMEN log, in file order.
 
-    times_s: (M,) log time [s] (ODOM lines with time 0 are dropped: they repeat the scan);
+    times_s: (M,) log time [s] (ODOM lines with time 0 are not odometry: they repeat the scan);
     gmapping: (M, 3) the GMapping pose (corrected for scans, corrected + raw odometry between);
-    raw: (M, 3) raw odometry accumulated from the first scan (an arbitrary but fixed frame);
+    raw: (M, 3) raw odometry (an arbitrary but fixed frame);
     is_scan: (M,) True on FLASER lines; scan_index: (M,) index of the latest scan at or before
     the line (-1 before the first scan).
     """
@@ -262,7 +262,13 @@ class PoseTrack:
 
 
 def parse_pose_track(lines: Iterable[str], source: str = "<log>") -> PoseTrack:
-    """Read the poses of FLASER and ODOM lines (see `PoseTrack`); other lines are skipped."""
+    """Read the poses of FLASER and ODOM lines (see `PoseTrack`); other lines are skipped.
+
+    Only poses and times: the scans themselves come from island_mapping.bag.carmen.read_carmen.
+    Kept here because the GMapping baseline depends on every ODOM line in file order (the
+    nearest line to a relation time, the first of equal times, the scan on ties); ODOM lines
+    with time 0 (the echo of the scan just logged) and those before the first scan are skipped.
+    """
     times: list[float] = []
     gm: list[list[float]] = []
     raw: list[FloatArray] = []
@@ -370,12 +376,13 @@ def beam_angles(n_beams: int) -> FloatArray:
 
 
 def beam_subset(n_total: int, n_keep: int) -> IntArray:
-    """Indices of n_keep beams spread evenly over a scan of n_total beams (sonar-like mode)."""
+    """Indices of n_keep beams spread evenly over a scan of n_total beams (sonar-like mode),
+    each centred in its sector: the same beams as island_mapping.bag.carmen.sonar_like_indices
+    (the MCAP importer), so both sonar-like modes see the same data."""
     if n_keep <= 0 or n_keep > n_total:
         raise RealDataError(f"beams: expected 1..{n_total} beams to keep, got {n_keep}")
-    if n_keep == n_total:
-        return np.arange(n_total, dtype=np.int64)
-    return np.round(np.linspace(0, n_total - 1, n_keep)).astype(np.int64)
+    step = n_total / n_keep
+    return np.floor(step / 2 + step * np.arange(n_keep)).astype(np.int64)
 
 
 def scan_points(
@@ -874,7 +881,9 @@ def _window_model(
         if cfg.align_window:
             model = fit(voxel_thin(np.concatenate(clouds), cfg.voxel_m))
     all_pts = np.concatenate(clouds) if clouds else np.zeros((0, 2))
-    final = model if (cfg.align_window and model is not None) else fit(voxel_thin(all_pts, cfg.voxel_m))
+    if cfg.align_window and model is not None:
+        return model, placed
+    final = fit(voxel_thin(all_pts, cfg.voxel_m))
     return final, placed
 
 
@@ -979,3 +988,166 @@ def score_relations(
         covered, np.where(covered, i1, -1).astype(np.int64), trans, rot,
         ErrorStats.of(trans[covered], rot[covered]), g_cov, g_all, int(np.sum(h1 & h2)),
     )
+
+
+# --------------------------------------------------------------------------------------------
+# The UCI wall-following sonar ring (24 real ultrasound transducers, SCITOS G5)
+# --------------------------------------------------------------------------------------------
+
+# Transducers of the UCI ring: 24, 15 deg apart. The UCI description gives sensor 1 the
+# "reference angle 180 deg" (the front) and sensor k the angle 180 - 15 (k - 1) deg, i.e. the
+# ring is numbered clockwise from the front. Checked on the data: the robot follows the wall
+# clockwise around the room (wall on its left), and sensors 16-21 (robot-frame +135..+60 deg
+# under this convention) read the shortest ranges (median 0.7 m) in every motion class.
+RING_SENSORS = 24
+RING_STEP_DEG = 15.0
+
+
+@dataclass(frozen=True)
+class SonarRingConfig:
+    """Geometry and scoring of the UCI sonar-ring readings (single source of defaults)."""
+
+    max_range_m: float = field(
+        default=5.0, metadata={"help": "the file's no-echo value; readings >= this are dropped [m]"}
+    )
+    ring_radius_m: float = field(
+        default=0.25,
+        metadata={"help": "assumed distance of the transducers from the robot centre (the UCI "
+                  "description gives none; a SCITOS G5 is about 0.58 m wide) [m]"},
+    )
+    line_fit: LineFitConfig = field(
+        default_factory=LineFitConfig, metadata={"help": "line fitting of one ring reading"}
+    )
+    measure: MeasureConfig = field(
+        default_factory=lambda: MeasureConfig(max_range_m=5.0),
+        metadata={"help": "the line-model measure R at the robot (sonar reflectance kept)"},
+    )
+
+    def __post_init__(self) -> None:
+        for name in ("max_range_m", "ring_radius_m"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise RealDataError(f"SonarRingConfig.{name}: expected a number >= 0, got {v!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class SonarReadings:
+    """UCI ring readings: ranges (K, 24) [m] in file order, labels (K,) the motion label."""
+
+    ranges_m: FloatArray
+    labels: tuple[str, ...]
+
+
+def parse_sonar_ring(
+    lines: Iterable[str], source: str = "<sonar>", limit: int | None = None
+) -> SonarReadings:
+    """Parse the UCI `sensor_readings_24.data` text: an optional header line (`S1,...,OUTPUT`),
+    then `r1,...,r24,Label` per line. At most `limit` readings are read. Raises RealDataError
+    naming the line number on a malformed line."""
+    ranges: list[list[float]] = []
+    labels: list[str] = []
+    for lineno, line in enumerate(lines, start=1):
+        if limit is not None and len(ranges) >= limit:
+            break
+        text = line.strip()
+        if not text:
+            continue
+        parts = [p.strip() for p in text.split(",")]
+        if lineno == 1 and parts[0].upper() == "S1":
+            continue  # the header
+        if len(parts) != RING_SENSORS + 1:
+            raise RealDataError(
+                f"{source}:{lineno}: expected {RING_SENSORS} ranges and a label, "
+                f"got {len(parts)} fields"
+            )
+        try:
+            vals = [float(p) for p in parts[:RING_SENSORS]]
+        except ValueError as exc:
+            raise RealDataError(f"{source}:{lineno}: not a range ({exc})") from None
+        if not all(math.isfinite(v) and v >= 0 for v in vals):
+            raise RealDataError(f"{source}:{lineno}: a range is negative, NaN or infinite")
+        if not parts[-1] or parts[-1][0].isdigit():
+            raise RealDataError(f"{source}:{lineno}: missing motion label")
+        ranges.append(vals)
+        labels.append(parts[-1])
+    return SonarReadings(np.asarray(ranges, dtype=np.float64).reshape(-1, RING_SENSORS),
+                         tuple(labels))
+
+
+def read_sonar_ring(path: str | os.PathLike[str], limit: int | None = None) -> SonarReadings:
+    """Read a UCI sonar-ring file (see `parse_sonar_ring`)."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            return parse_sonar_ring(f, str(path), limit)
+    except OSError as exc:
+        raise RealDataError(f"{path}: cannot read sonar readings ({exc.strerror})") from None
+
+
+def ring_angles() -> FloatArray:
+    """Robot-frame angles [rad] of the 24 transducers (sensor 1 ahead, numbered clockwise)."""
+    return -np.radians(np.arange(RING_SENSORS, dtype=np.float64) * RING_STEP_DEG)
+
+
+def ring_points(ranges_m: npt.ArrayLike, cfg: SonarRingConfig) -> FloatArray:
+    """(N, 2) echo points [m] in the robot frame of one reading (no-echo readings dropped)."""
+    r = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
+    if r.size != RING_SENSORS:
+        raise RealDataError(f"ring reading: expected {RING_SENSORS} ranges, got {r.size}")
+    a = ring_angles()
+    ok = np.isfinite(r) & (r > 0) & (r < cfg.max_range_m)
+    d = r[ok] + cfg.ring_radius_m
+    return np.stack([d * np.cos(a[ok]), d * np.sin(a[ok])], axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class RingScores:
+    """Per reading: line-model measure R at the robot, Fisher score, segment count."""
+
+    r: FloatArray
+    fisher: FloatArray
+    segments: IntArray
+
+
+def score_ring_readings(
+    readings: SonarReadings,
+    cfg: SonarRingConfig | None = None,
+    evaluator: Callable[[FloatArray], Mapping[ModelType, float]] | None = None,
+) -> RingScores:
+    """Fit lines to each single reading's ring points and evaluate R and the Fisher score at
+    the robot (the origin of the reading's frame)."""
+    c = cfg if cfg is not None else SonarRingConfig()
+    fit = core_fitter(c.line_fit)
+    evaluate = evaluator if evaluator is not None else core_evaluator(c.measure)
+    k = readings.ranges_m.shape[0]
+    r = np.zeros(k)
+    fisher = np.zeros(k)
+    nseg = np.zeros(k, dtype=np.int64)
+    for i in range(k):
+        model = fit(ring_points(readings.ranges_m[i], c))
+        nseg[i] = len(model)
+        if len(model):
+            m = evaluate(model.segments)
+            r[i] = float(m.get(ModelType.LINE, 0.0))
+            fisher[i] = float(m.get(ModelType.FISHER, 0.0))
+    return RingScores(r, fisher, nseg)
+
+
+def ring_metrics(readings: SonarReadings, scores: RingScores) -> dict[str, object]:
+    """Per-label count, mean and median of R and of the Fisher score (JSON-ready)."""
+    labels = np.asarray(readings.labels)
+    per: dict[str, object] = {}
+    for lab in sorted(set(readings.labels)):
+        sel = labels == lab
+        per[lab] = {
+            "count": int(np.sum(sel)),
+            "mean_r": round(float(np.mean(scores.r[sel])), 6),
+            "median_r": round(float(np.median(scores.r[sel])), 6),
+            "mean_fisher": round(float(np.mean(scores.fisher[sel])), 6),
+            "median_fisher": round(float(np.median(scores.fisher[sel])), 6),
+            "mean_segments": round(float(np.mean(scores.segments[sel])), 3),
+        }
+    return {
+        "readings": int(labels.size),
+        "mean_r": round(float(np.mean(scores.r)), 6) if labels.size else None,
+        "per_label": per,
+    }

@@ -1,0 +1,1 @@
+"""Matplotlib figures (never imported by core modules)."""

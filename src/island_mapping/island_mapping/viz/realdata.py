@@ -1,0 +1,110 @@
+"""Figures of the real-data runs: islands like the paper's Fig. 5b, and R on the sonar ring."""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from island_mapping.core.realdata import RealIsland, RingScores, SonarReadings
+
+# Islands per row of the Fig. 5b-like layout, and the gap between their boxes [m].
+_MAX_COLUMNS = 10
+_GAP_M = 2.0
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save_figure_atomic(fig: Any, path: str | os.PathLike[str], dpi: int = 120) -> Path:
+    """Save a matplotlib figure to `path` via a temporary file in the same directory."""
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=target.suffix, dir=target.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=dpi)
+        os.replace(tmp, target)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return target
+
+
+def island_layout(islands: Sequence[RealIsland]) -> list[tuple[float, float]]:
+    """Offsets [m] that place each island's model (in its own frame) in a grid, for clarity
+    only (no global frame exists): cells as large as the largest model extent plus a gap."""
+    if not islands:
+        return []
+    half = 1.0
+    for isl in islands:
+        seg = isl.island.model.segments
+        if seg.size:
+            half = max(half, float(np.max(np.abs(seg))))
+    cell = 2.0 * half + _GAP_M
+    cols = min(_MAX_COLUMNS, max(1, math.ceil(math.sqrt(len(islands)))))
+    return [(cell * (k % cols), -cell * (k // cols)) for k in range(len(islands))]
+
+
+def plot_islands(
+    islands: Sequence[RealIsland], path: str | os.PathLike[str], title: str = ""
+) -> Path:
+    """Each island's line model drawn in its own frame, a dot at its origin, laid out in a grid
+    (like the paper's Fig. 5b); the island id and its best normalized measure label each."""
+    plt = _pyplot()
+    offsets = island_layout(islands)
+    fig, ax = plt.subplots(figsize=(10, 10))
+    colours = {"line": "tab:blue", "fisher": "tab:green"}
+    for isl, (ox, oy) in zip(islands, offsets, strict=True):
+        seg = isl.island.model.segments
+        colour = colours.get(isl.island.model_type.value, "tab:blue")
+        for x1, y1, x2, y2 in seg:
+            ax.plot([x1 + ox, x2 + ox], [y1 + oy, y2 + oy], color=colour, lw=1.0)
+        ax.plot([ox], [oy], "o", color="tab:red", ms=4)
+        ax.annotate(f"{isl.island.id}", (ox, oy), textcoords="offset points", xytext=(4, 4),
+                    fontsize=7)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m] (each island in its own frame, offsets for clarity)")
+    ax.set_ylabel("y [m]")
+    ax.set_title(title or f"{len(islands)} islands (blue: line model R, green: Fisher)")
+    fig.tight_layout()
+    out = save_figure_atomic(fig, path)
+    plt.close(fig)
+    return out
+
+
+def plot_ring_scores(
+    readings: SonarReadings, scores: RingScores, path: str | os.PathLike[str]
+) -> Path:
+    """Box plot of R per motion label and R over the reading index coloured by label."""
+    plt = _pyplot()
+    labels = np.asarray(readings.labels)
+    names = sorted(set(readings.labels))
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 8))
+    ax1.boxplot([scores.r[labels == n] for n in names], tick_labels=names)
+    ax1.set_ylabel("R at the robot [-]")
+    ax1.set_title("Line-model measure R of single 24-sonar readings per recorded motion")
+    cmap = plt.get_cmap("tab10")
+    idx = np.arange(labels.size)
+    for k, n in enumerate(names):
+        sel = labels == n
+        ax2.scatter(idx[sel], scores.r[sel], s=3, color=cmap(k % 10), label=n)
+    ax2.set_xlabel("reading index (9 Hz)")
+    ax2.set_ylabel("R [-]")
+    ax2.legend(markerscale=4, fontsize=8, loc="lower right")
+    fig.tight_layout()
+    out = save_figure_atomic(fig, path)
+    plt.close(fig)
+    return out
