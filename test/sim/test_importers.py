@@ -169,7 +169,7 @@ def test_read_png_colour_types(tmp_path: Path) -> None:
     rgb = np.repeat(img[:, :, None], 3, axis=2)
     (tmp_path / "rgb.png").write_bytes(_encode_png(rgb, 2, [4, 1]))
     assert np.array_equal(read_png(tmp_path / "rgb.png"), img)
-    rgba = np.concatenate([rgb, np.full(img.shape + (1,), 255, np.uint8)], axis=2)
+    rgba = np.concatenate([rgb, np.full((*img.shape, 1), 255, np.uint8)], axis=2)
     (tmp_path / "rgba.png").write_bytes(_encode_png(rgba, 6, [3]))
     assert np.array_equal(read_png(tmp_path / "rgba.png"), img)
     idx = (img > 0).astype(np.uint8)
@@ -180,11 +180,11 @@ def test_read_png_colour_types(tmp_path: Path) -> None:
 def test_read_png_errors(tmp_path: Path) -> None:
     p = tmp_path / "x.png"
     p.write_bytes(b"definitely not a png")
-    with pytest.raises(WorldError, match="x.png: not a PNG"):
+    with pytest.raises(WorldError, match=r"x\.png: not a PNG"):
         load_world(p)
     good = _encode_png(_room_image(), 0, [0])
     p.write_bytes(good[:-30] + b"\x00" * 30)  # damaged image data
-    with pytest.raises(WorldError, match="x.png"):
+    with pytest.raises(WorldError, match=r"x\.png"):
         load_world(p)
     ihdr = struct.pack(">IIBBBBB", 4, 4, 1, 0, 0, 0, 0)  # 1-bit grey
     p.write_bytes(b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", ihdr) + _png_chunk(b"IEND", b""))
@@ -195,7 +195,7 @@ def test_read_png_errors(tmp_path: Path) -> None:
 def test_unreadable_and_wallless_images(tmp_path: Path) -> None:
     d = tmp_path / "dir.png"
     d.mkdir()
-    with pytest.raises(WorldError, match="dir.png: cannot read"):
+    with pytest.raises(WorldError, match=r"dir\.png: cannot read"):
         import_image(d)
     white = tmp_path / "white.pgm"
     white.write_bytes(b"P5\n4 4\n255\n" + bytes([255] * 16))
