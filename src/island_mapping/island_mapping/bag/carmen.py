@@ -336,7 +336,7 @@ def import_carmen(
     increment = step * FLASER_ANGLE_INCREMENT_RAD
 
     def ns(t: float) -> int:
-        return int(round(t * 1e9))
+        return round(t * 1e9)
 
     def set_time(stamp: Any, t_ns: int) -> None:
         stamp.sec, stamp.nanosec = divmod(t_ns, 1_000_000_000)

@@ -82,7 +82,9 @@ class BagPlayer:
 
     # -- iteration ------------------------------------------------------------------------------
     def _restart(self) -> None:
-        self._it: Iterator[BagMessage] = self.reader.messages(self.topics) if self.topics else iter(())
+        self._it: Iterator[BagMessage] = (
+            self.reader.messages(self.topics) if self.topics else iter(())
+        )
         self._pending: BagMessage | None = next(self._it, None)
         self._wall0: float | None = None
 

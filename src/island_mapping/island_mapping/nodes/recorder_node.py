@@ -1,0 +1,115 @@
+"""recorder_node: record topics of the running graph to a rosbag2 MCAP directory.
+
+    ros2 run island_mapping recorder_node --ros-args -p output_dir:=runs/today \\
+        -p recorder.topics:="['/sonar/scan', '/odom']" -p recorder.compression:=zstd
+
+Parameters: `output_dir` (default `run_<UTC date-time>`, must not exist) and `recorder.<field>`
+for every field of island_mapping.bag.recorder.RecorderConfig (topics: empty = all).
+Ctrl-C or SIGTERM closes the bag properly (summary + metadata.yaml); after SIGKILL use
+`islands bag recover`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import signal
+import sys
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import rclpy
+from island_msgs_py.ros_params import ensure_ros_env
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from island_mapping.bag.errors import BagError
+from island_mapping.bag.recorder import RecorderConfig, RunRecorder
+
+NODE_NAME = "recorder"
+PREFIX = "recorder"
+
+
+def declare_recorder_config(node: Node) -> RecorderConfig:
+    """Declare `recorder.<field>` for RecorderConfig (string arrays declared by type)."""
+    default = RecorderConfig()
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(RecorderConfig):
+        name = f"{PREFIX}.{f.name}"
+        current = getattr(default, f.name)
+        help_text = str(f.metadata.get("help", ""))
+        if isinstance(current, tuple):
+            # An empty list default would be declared as a byte array: declare the type.
+            desc = ParameterDescriptor(
+                description=help_text, type=ParameterType.PARAMETER_STRING_ARRAY
+            )
+            got = node.declare_parameter(name, Parameter.Type.STRING_ARRAY, desc).value
+            values[f.name] = tuple(got) if got is not None else current
+        else:
+            got = node.declare_parameter(
+                name, current, ParameterDescriptor(description=help_text)
+            ).value
+            values[f.name] = float(got) if isinstance(current, float) else got
+    return RecorderConfig(**values)
+
+
+class RecorderNode(Node):
+    """Owns a RunRecorder writing to the `output_dir` parameter."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        stamp = time.strftime("%Y_%m_%d-%H_%M_%S", time.gmtime())
+        out = self.declare_parameter(
+            "output_dir",
+            f"run_{stamp}",
+            ParameterDescriptor(description="bag directory to create (must not exist)"),
+        ).value
+        self.config = declare_recorder_config(self)
+        self.recorder = RunRecorder(self, out, config=self.config)
+        self.get_logger().info(
+            f"recording {'all topics' if not self.config.topics else self.config.topics} "
+            f"to {self.recorder.path}"
+        )
+
+    def close(self) -> None:
+        path = self.recorder.close()
+        # After Ctrl-C the context is shut down and /rosout is gone: plain stderr.
+        print(
+            f"recorder_node: closed {path}: {self.recorder.writer.message_count} messages on "
+            f"{len(self.recorder.recorded_topics)} topics",
+            file=sys.stderr,
+        )
+
+
+def _raise_interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    ensure_ros_env()
+    rclpy.init(args=args)
+    signal.signal(signal.SIGTERM, _raise_interrupt)
+    try:
+        node = RecorderNode()
+    except BagError as exc:
+        print(f"recorder_node: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.close()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
