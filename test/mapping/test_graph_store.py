@@ -110,5 +110,24 @@ def test_store_of_a_copied_directory_is_independent(tmp_path: Path) -> None:
     shutil.copytree(tmp_path / "a", tmp_path / "b")
     with GraphStore(tmp_path / "b") as b:
         b.put_island(island(10))
-    assert 10 not in GraphStore(tmp_path / "a").graph
-    assert TopoGraph.from_json(GraphStore(tmp_path / "b").graph.to_json()).island_ids()[-1] == 10
+    assert 10 not in GraphStore.read(tmp_path / "a")
+    assert TopoGraph.from_json(GraphStore.read(tmp_path / "b").to_json()).island_ids()[-1] == 10
+
+
+def test_one_writer_at_a_time_and_read_only_changes_nothing(tmp_path: Path) -> None:
+    with GraphStore(tmp_path) as store:
+        _fill(store, 3)
+        with pytest.raises(GraphError, match="in use by another process"):
+            GraphStore(tmp_path)
+        assert GraphStore.read(tmp_path).island_ids() == [0, 1, 2]  # readers are fine
+    with open(tmp_path / GraphStore.LOG, "ab") as f:
+        f.write(b'{"seq": 9, "op"')
+    size = (tmp_path / GraphStore.LOG).stat().st_size
+    ro = GraphStore(tmp_path, read_only=True)
+    assert ro.dropped_torn_tail and ro.graph.island_ids() == [0, 1, 2]
+    assert (tmp_path / GraphStore.LOG).stat().st_size == size  # torn tail left alone
+    with pytest.raises(GraphError, match="read-only"):
+        ro.put_island(island(5))
+    assert ro.graph.island_ids() == [0, 1, 2]
+    with pytest.raises(GraphFormatError, match="no such graph store"):
+        GraphStore.read(tmp_path / "missing")

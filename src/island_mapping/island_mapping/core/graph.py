@@ -20,6 +20,7 @@ accepted change with a write-ahead log (fsync per change) plus atomic snapshots.
 from __future__ import annotations
 
 import dataclasses
+import fcntl
 import itertools
 import json
 import math
@@ -28,7 +29,7 @@ from collections import OrderedDict
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import networkx as nx
 import numpy as np
@@ -801,16 +802,48 @@ class GraphStore:
     SNAPSHOT = "snapshot.json"
     LOG = "changes.jsonl"
 
-    def __init__(self, directory: str | os.PathLike[str], config: GraphStoreConfig | None = None):
+    LOCK = ".lock"
+
+    def __init__(
+        self,
+        directory: str | os.PathLike[str],
+        config: GraphStoreConfig | None = None,
+        read_only: bool = False,
+    ) -> None:
+        """Open (creating it when missing) and load the store. A writable store holds an
+        exclusive lock on `directory/.lock` (released by the OS even on SIGKILL), so two
+        writers never interleave; `read_only=True` only reads and changes nothing on disk."""
         self.config = config or GraphStoreConfig()
         self.directory = Path(directory).expanduser()
-        self.directory.mkdir(parents=True, exist_ok=True)
+        self.read_only = read_only
         self.graph = TopoGraph()
         self._seq = 0
         self._logged = 0  # lines in the current log
         self.dropped_torn_tail = False
+        self._lock_fd: int | None = None
+        self._log: IO[str] | None = None
+        if read_only:
+            if not self.directory.is_dir():
+                raise GraphFormatError(str(self.directory), "no such graph store directory")
+            self._load()
+            return
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self._lock_fd = os.open(self.directory / self.LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(self._lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self._lock_fd)
+            self._lock_fd = None
+            raise GraphError(
+                f"graph store {self.directory} is in use by another process"
+            ) from None
         self._load()
         self._log = open(self.directory / self.LOG, "a", encoding="utf-8")
+
+    @classmethod
+    def read(cls, directory: str | os.PathLike[str]) -> TopoGraph:
+        """The graph of a store directory, read without changing anything (even while in use)."""
+        return cls(directory, read_only=True).graph
 
     # --- loading -------------------------------------------------------------------------------
 
@@ -852,7 +885,7 @@ class GraphStore:
             self._logged += 1
             pos = nl + 1
             good_end = pos
-        if good_end < len(data):
+        if good_end < len(data) and not self.read_only:
             with open(log, "r+b") as f:
                 f.truncate(good_end)
                 f.flush()
@@ -884,6 +917,8 @@ class GraphStore:
     # --- changes -------------------------------------------------------------------------------
 
     def _append(self, record: dict[str, Any]) -> None:
+        if self._log is None:
+            raise GraphError(f"graph store {self.directory} is open read-only")
         record = {"seq": self._seq + 1, **record}
         self._log.write(json_io.dumps(record) + "\n")
         self._log.flush()
@@ -931,6 +966,8 @@ class GraphStore:
             "format": SNAPSHOT_FORMAT, "version": 1, "seq": self._seq,
             "graph": self.graph.to_dict(),
         }
+        if self._log is None:
+            raise GraphError(f"graph store {self.directory} is open read-only")
         json_io.atomic_write_text(self.directory / self.SNAPSHOT, json_io.dumps(doc) + "\n")
         self._log.close()
         json_io.atomic_write_text(self.directory / self.LOG, "")
@@ -938,8 +975,15 @@ class GraphStore:
         self._logged = 0
 
     def close(self) -> None:
-        if not self._log.closed:
+        if self._log is not None and not self._log.closed:
             self._log.close()
+        if self._lock_fd is not None:
+            os.close(self._lock_fd)  # releases the flock
+            self._lock_fd = None
+
+    def __del__(self) -> None:
+        if getattr(self, "_lock_fd", None) is not None or getattr(self, "_log", None) is not None:
+            self.close()
 
     def __enter__(self) -> GraphStore:
         return self

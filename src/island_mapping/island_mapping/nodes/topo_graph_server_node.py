@@ -198,8 +198,8 @@ def main(args: Sequence[str] | None = None) -> int:
     rclpy.init(args=args)
     try:
         node = TopoGraphServerNode()
-    except (GraphFormatError, OSError) as exc:
-        print(f"topo_graph_server_node: cannot load the stored graph: {exc}", file=sys.stderr)
+    except (GraphFormatError, GraphError, OSError) as exc:
+        print(f"topo_graph_server_node: cannot open the stored graph: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
     executor = SingleThreadedExecutor()
