@@ -1,0 +1,621 @@
+"""Navigating by the map: island to island with no global frame (paper section 8.2), simulated.
+
+Pure (numpy + the island_sim cores, no ROS). `follow_route` drives a simulated robot along a
+planned route of islands:
+
+1. localize at the source island: rotate once in place collecting sonar points (in the robot
+   frame by odometry), localize them against the island's line model from several initial
+   guesses around the current estimate, keep the converged result with the smallest residual;
+2. dock: drive by odometry onto the island origin (0, 0, 0) and re-localize, up to
+   `dock_attempts` times, until within `dock_tol_m` / `dock_tol_deg`;
+3. execute the edge's strategy: `Go d` drives d of odometric travel forward with the hall
+   follower's perception keeping the robot in the middle of the hallway (a qualitative "follow
+   the hall for d"), `Rot a` rotates in place by a of odometric heading;
+4. localize in the next island starting from the estimate (0, 0, 0) (the strategy ends at the
+   target origin) and repeat from 2.
+
+An edge succeeds when that localization converged and its pose is within `success_tol_m` and
+`success_tol_deg` of the robot's true pose expressed in the island frame (the island's
+`origin_truth`, kept for evaluation only). The route succeeds when every edge did and the robot,
+docked at the last island, truly stands within the same tolerance of that island's true origin.
+
+`follow_route_global_odometry` is the baseline: the same trip on global odometry alone. The robot
+starts with its odometry set to the source island's odometric pose recorded at exploration time,
+runs the same strategies, and after each edge drives by odometry to the next island's recorded
+odometric pose; no re-localization. It succeeds when it ends within the same tolerance of the
+target's true origin.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from island_msgs_py.types import (
+    ControlStrategy,
+    Edge,
+    FloatArray,
+    Island,
+    Pose2D,
+    PrimitiveKind,
+    wrap_angle,
+)
+from island_sim.core.hall_follower import HallFollower, HallFollowerConfig
+from island_sim.core.robot import OdometryConfig, RobotConfig, SimRobot
+from island_sim.core.sonar import SonarConfig, SonarModel
+from island_sim.core.world import World
+
+from island_mapping.core.graph import GraphError, TopoGraph, reverse_strategy
+from island_mapping.core.localize import LocalizationResult, LocalizeConfig, localize
+
+
+class NavigateError(ValueError):
+    """Bad input to route following (the message names what was wrong)."""
+
+
+@dataclass(frozen=True)
+class NavigateConfig:
+    """Route following and its evaluation."""
+
+    success_tol_m: float = field(
+        default=0.25, metadata={"help": "largest position error of a successful localization [m]"}
+    )
+    success_tol_deg: float = field(
+        default=10.0, metadata={"help": "largest heading error of a successful localization [deg]"}
+    )
+    start_offset_m: float = field(
+        default=0.1,
+        metadata={
+            "help": "the robot starts uniformly within this distance of the source "
+            "origin (same start for both methods) [m]"
+        },
+    )
+    start_offset_deg: float = field(
+        default=5.0, metadata={"help": "and within this heading of it [deg]"}
+    )
+    go_speed_mps: float = field(default=0.4, metadata={"help": "speed of Go steps [m/s]"})
+    turn_rate_radps: float = field(
+        default=0.6, metadata={"help": "largest turn rate of Rot steps and docking [rad/s]"}
+    )
+    k_heading_per_s: float = field(
+        default=2.0, metadata={"help": "turn rate per radian of heading error [1/s]"}
+    )
+    k_lateral_rad_per_m: float = field(
+        default=1.0, metadata={"help": "approach angle per metre off the hallway middle [rad/m]"}
+    )
+    max_approach_deg: float = field(
+        default=20.0, metadata={"help": "largest approach angle when re-centring [deg]"}
+    )
+    stop_distance_m: float = field(
+        default=0.6, metadata={"help": "a Go step ends early at this front range [m]"}
+    )
+    search_radius_m: float = field(
+        default=0.6,
+        metadata={
+            "help": "initial guesses for localization cover this square half-side "
+            "around the estimate [m]"
+        },
+    )
+    search_step_m: float = field(default=0.3, metadata={"help": "spacing of the guesses [m]"})
+    search_heading_deg: float = field(
+        default=8.0, metadata={"help": "guesses also at +- this heading offset [deg]"}
+    )
+    max_points: int = field(
+        default=400, metadata={"help": "localization uses at most this many points [-]"}
+    )
+    min_agreeing: int = field(
+        default=3,
+        metadata={
+            "help": "stop trying further guesses once this many trusted results agree "
+            "within 0.1 m [-]"
+        },
+    )
+    max_residual_m: float = field(
+        default=0.15, metadata={"help": "a localization with a larger RMS residual is rejected [m]"}
+    )
+    dock_tol_m: float = field(
+        default=0.05, metadata={"help": "docking at an origin ends within this distance [m]"}
+    )
+    dock_tol_deg: float = field(default=3.0, metadata={"help": "and this heading [deg]"})
+    dock_attempts: int = field(default=3, metadata={"help": "drive-and-relocalize rounds [-]"})
+    physics_rate_hz: float = field(default=50.0, metadata={"help": "simulation step rate [Hz]"})
+    sensor_rate_hz: float = field(default=10.0, metadata={"help": "sonar scan rate [Hz]"})
+    max_edge_time_s: float = field(
+        default=900.0, metadata={"help": "simulated time limit of one edge [s]"}
+    )
+    localize: LocalizeConfig = field(
+        default_factory=LocalizeConfig, metadata={"help": "line-model localization"}
+    )
+
+    def __post_init__(self) -> None:
+        for name in (
+            "success_tol_m",
+            "success_tol_deg",
+            "go_speed_mps",
+            "turn_rate_radps",
+            "search_step_m",
+            "max_residual_m",
+            "dock_tol_m",
+            "dock_tol_deg",
+            "physics_rate_hz",
+            "sensor_rate_hz",
+            "max_edge_time_s",
+        ):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise NavigateError(f"NavigateConfig.{name}: expected a number > 0, got {v!r}")
+        for name in ("start_offset_m", "start_offset_deg", "search_radius_m", "search_heading_deg"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise NavigateError(f"NavigateConfig.{name}: expected a number >= 0, got {v!r}")
+        if self.dock_attempts < 1:
+            raise NavigateError(
+                f"NavigateConfig.dock_attempts: must be >= 1, got {self.dock_attempts}"
+            )
+
+    @property
+    def steps_per_scan(self) -> int:
+        return max(1, round(self.physics_rate_hz / self.sensor_rate_hz))
+
+
+@dataclass(frozen=True)
+class EdgeResult:
+    """One edge of a followed route.
+
+    localized: the localization converged with a small residual; error_m / error_deg: its pose
+    vs the true pose in the island frame; success: localized and within tolerance.
+    """
+
+    source: int
+    target: int
+    strategy: str
+    localized: bool
+    error_m: float
+    error_deg: float
+    success: bool
+
+
+@dataclass(frozen=True)
+class RouteResult:
+    """A followed route: per edge results, the final true offset from the target origin."""
+
+    route: tuple[int, ...]
+    edges: tuple[EdgeResult, ...]
+    final_error_m: float
+    final_error_deg: float
+    success: bool
+    sim_time_s: float
+
+
+@dataclass(frozen=True)
+class RouteEvaluation:
+    """Success rates of island navigation and of the global-odometry baseline on the same pairs."""
+
+    pairs: tuple[tuple[int, int], ...]
+    islands: tuple[RouteResult, ...]
+    baseline: tuple[RouteResult, ...]
+
+    @property
+    def islands_success_rate(self) -> float:
+        return _rate(self.islands)
+
+    @property
+    def baseline_success_rate(self) -> float:
+        return _rate(self.baseline)
+
+
+def _rate(results: Sequence[RouteResult]) -> float:
+    return sum(r.success for r in results) / len(results) if results else math.nan
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+class _Sim:
+    """A SimRobot and a sonar ring stepped in sensor periods; every method returns on sim time."""
+
+    def __init__(
+        self,
+        world: World,
+        robot: SimRobot,
+        sonar: SonarModel,
+        cfg: NavigateConfig,
+        rng: np.random.Generator,
+    ) -> None:
+        self.world, self.robot, self.sonar, self.cfg, self.rng = world, robot, sonar, cfg, rng
+        self.dt = 1.0 / cfg.physics_rate_hz
+        self.scan = sonar.scan(world, robot.true_pose, rng)
+        self.deadline_s = math.inf
+
+    @property
+    def t(self) -> float:
+        return self.robot.time_s
+
+    def step(self, v: float, w: float) -> None:
+        if self.t > self.deadline_s:
+            raise _SimTimeoutError()
+        for _ in range(self.cfg.steps_per_scan):
+            self.robot.step(v, w, self.dt)
+        self.scan = self.sonar.scan(self.world, self.robot.true_pose, self.rng)
+
+    def scan_points_odom(self) -> FloatArray:
+        """Points of the latest scan in the odometry frame [m]."""
+        o = self.robot.odom_pose
+        a = self.sonar.angles_rad + o.theta
+        ok = np.isfinite(self.scan)
+        r = self.scan[ok]
+        return np.stack([o.x + r * np.cos(a[ok]), o.y + r * np.sin(a[ok])], axis=1)
+
+    def rotate_to(self, heading_odom_rad: float) -> None:
+        c = self.cfg
+        tol = math.radians(0.5)
+        while True:
+            err = wrap_angle(heading_odom_rad - self.robot.odom_pose.theta)
+            if abs(err) <= tol and abs(self.robot.velocity[1]) < 0.05:
+                return
+            w = float(np.clip(c.k_heading_per_s * err, -c.turn_rate_radps, c.turn_rate_radps))
+            self.step(0.0, w)
+
+    def rotate_by(self, angle_rad: float) -> None:
+        """Rotate in place by angle_rad of odometric heading (any size, e.g. a full turn)."""
+        c = self.cfg
+        done, last = 0.0, self.robot.odom_pose.theta
+        sign = 1.0 if angle_rad >= 0 else -1.0
+        while abs(angle_rad) - abs(done) > math.radians(0.5):
+            remaining = abs(angle_rad) - abs(done)
+            w = sign * min(c.turn_rate_radps, max(0.1, c.k_heading_per_s * remaining))
+            self.step(0.0, w)
+            th = self.robot.odom_pose.theta
+            done += wrap_angle(th - last)
+            last = th
+        self.step(0.0, 0.0)
+
+    def go_to(self, target_odom: Pose2D) -> None:
+        """Drive by odometry to the target pose: turn to face it, drive, turn to its heading."""
+        c = self.cfg
+        o = self.robot.odom_pose
+        d = math.hypot(target_odom.x - o.x, target_odom.y - o.y)
+        if d > 0.02:
+            self.rotate_to(math.atan2(target_odom.y - o.y, target_odom.x - o.x))
+            while True:
+                o = self.robot.odom_pose
+                dx, dy = target_odom.x - o.x, target_odom.y - o.y
+                d = math.hypot(dx, dy)
+                along = dx * math.cos(o.theta) + dy * math.sin(o.theta)
+                if along <= 0.01 or d <= 0.01:
+                    break
+                err = wrap_angle(math.atan2(dy, dx) - o.theta) if d > 0.1 else 0.0
+                w = float(np.clip(c.k_heading_per_s * err, -c.turn_rate_radps, c.turn_rate_radps))
+                self.step(min(c.go_speed_mps, 1.5 * along + 0.02), w)
+        self.rotate_to(target_odom.theta)
+        self.step(0.0, 0.0)
+
+
+class _SimTimeoutError(Exception):
+    """The simulated time limit of an edge ran out."""
+
+
+def _go(sim: _Sim, distance_m: float, follower: HallFollower) -> None:
+    """Drive distance_m of odometric travel forward, centred in the hallway by the sonar."""
+    c = sim.cfg
+    travelled = 0.0
+    last = sim.robot.odom_pose
+    hold = last.theta  # hallway direction in the odometry frame [rad]
+    half_width = 0.5 * follower.config.default_hall_width_m
+    max_app = math.radians(c.max_approach_deg)
+    while travelled < distance_m - 0.005:
+        p = follower.perceive(sim.scan, sim.sonar.angles_rad)
+        o = sim.robot.odom_pose
+        if p.front_m < c.stop_distance_m:
+            break
+        if p.wall_angle_rad is not None and abs(p.wall_angle_rad) < math.radians(25.0):
+            hold = wrap_angle(o.theta + p.wall_angle_rad)
+        use_left = math.isfinite(p.left_dist_m) and not p.left_open
+        use_right = math.isfinite(p.right_dist_m) and not p.right_open
+        offset = 0.0
+        if use_left and use_right:
+            offset = 0.5 * (p.left_dist_m - p.right_dist_m)
+            half_width = 0.5 * (p.left_dist_m + p.right_dist_m)
+        elif use_left:
+            offset = p.left_dist_m - half_width
+        elif use_right:
+            offset = half_width - p.right_dist_m
+        approach = float(np.clip(c.k_lateral_rad_per_m * offset, -max_app, max_app))
+        err = wrap_angle(hold + approach - o.theta)
+        w = float(np.clip(c.k_heading_per_s * err, -c.turn_rate_radps, c.turn_rate_radps))
+        remaining = distance_m - travelled
+        sim.step(min(c.go_speed_mps, 1.5 * remaining + 0.03), w)
+        now = sim.robot.odom_pose
+        travelled += math.hypot(now.x - last.x, now.y - last.y)
+        last = now
+    sim.step(0.0, 0.0)
+
+
+def execute_strategy(sim: _Sim, strategy: ControlStrategy, follower: HallFollower) -> None:
+    """Run the primitives: Go d [cm] along the hallway, Rot a [deg CCW] in place (odometry)."""
+    for s in strategy.steps:
+        if s.kind is PrimitiveKind.GO:
+            _go(sim, s.metres, follower)
+        else:
+            sim.rotate_by(math.radians(s.value) if s.value <= 180 else math.radians(s.value - 360))
+
+
+def _look_around(sim: _Sim) -> FloatArray:
+    """Rotate once in place collecting scan points; return them in the final robot frame [m]."""
+    pts = [sim.scan_points_odom()]
+    c = sim.cfg
+    done, last = 0.0, sim.robot.odom_pose.theta
+    while done < 2.0 * math.pi:
+        sim.step(0.0, c.turn_rate_radps)
+        th = sim.robot.odom_pose.theta
+        done += wrap_angle(th - last)
+        last = th
+        pts.append(sim.scan_points_odom())
+    sim.step(0.0, 0.0)
+    allp = np.concatenate(pts, axis=0)
+    o = sim.robot.odom_pose
+    cth, sth = math.cos(o.theta), math.sin(o.theta)
+    d = allp - np.array([o.x, o.y])
+    return np.stack([cth * d[:, 0] + sth * d[:, 1], -sth * d[:, 0] + cth * d[:, 1]], axis=1)
+
+
+def localize_multi(
+    island: Island, points_robot: FloatArray, estimate: Pose2D, cfg: NavigateConfig
+) -> tuple[LocalizationResult, bool]:
+    """Localize from initial guesses around `estimate`; (best result, trusted).
+
+    The best result is the converged one with the smallest residual (any result when none
+    converged); trusted = it converged with a residual below `max_residual_m`.
+    """
+    r = cfg.search_radius_m
+    n = math.floor(r / cfg.search_step_m + 1e-9)
+    offs = np.arange(-n, n + 1) * cfg.search_step_m
+    dths = (0.0, math.radians(cfg.search_heading_deg), -math.radians(cfg.search_heading_deg))
+    guesses = sorted(
+        ((dx, dy, dth) for dx in offs for dy in offs for dth in dths),
+        key=lambda g: math.hypot(g[0], g[1]) + abs(g[2]),
+    )
+    if points_robot.shape[0] > cfg.max_points:  # evenly thinned: the look-around is redundant
+        keep = np.linspace(0, points_robot.shape[0] - 1, cfg.max_points).round().astype(int)
+        points_robot = points_robot[keep]
+    best: LocalizationResult | None = None
+    good: list[Pose2D] = []
+    for dx, dy, dth in guesses:
+        init = Pose2D(estimate.x + dx, estimate.y + dy, wrap_angle(estimate.theta + dth))
+        res = localize(island.model, points_robot, init, cfg.localize)
+        if best is None or (res.converged, -res.residual_m) > (best.converged, -best.residual_m):
+            best = res
+        if res.converged and res.residual_m <= cfg.max_residual_m:
+            good.append(res.pose)
+            # Guesses go outward from the estimate: stop once the nearest good fits agree.
+            agree = [p for p in good if math.hypot(p.x - good[0].x, p.y - good[0].y) <= 0.1]
+            if len(agree) >= cfg.min_agreeing:
+                break
+    assert best is not None
+    return best, bool(best.converged and best.residual_m <= cfg.max_residual_m)
+
+
+def _truth_in(island: Island, true_pose: Pose2D) -> Pose2D:
+    if island.origin_truth is None:
+        raise NavigateError(f"island {island.id} has no origin_truth: cannot evaluate")
+    return true_pose.relative_to(island.origin_truth)
+
+
+def _pose_error(a: Pose2D, b: Pose2D) -> tuple[float, float]:
+    return math.hypot(a.x - b.x, a.y - b.y), abs(math.degrees(wrap_angle(a.theta - b.theta)))
+
+
+def _localize_and_dock(sim: _Sim, island: Island, estimate: Pose2D) -> tuple[bool, float, float]:
+    """Localize in the island from the estimate, check against truth, dock at the origin.
+
+    Returns (trusted localization, its position error [m], heading error [deg]) of the FIRST
+    localization (the one that says whether the robot found the island)."""
+    c = sim.cfg
+    pts = _look_around(sim)
+    res, trusted = localize_multi(island, pts, estimate, c)
+    err_m, err_deg = _pose_error(res.pose, _truth_in(island, sim.robot.true_pose))
+    first = (trusted, err_m, err_deg)
+    if not trusted:
+        return first
+    est = res.pose
+    for _ in range(c.dock_attempts):
+        if math.hypot(est.x, est.y) <= c.dock_tol_m and abs(est.theta) <= math.radians(
+            c.dock_tol_deg
+        ):
+            break
+        o = sim.robot.odom_pose
+        sim.go_to(o.compose(est.inverse()))  # the island origin in the odometry frame
+        pts = _look_around(sim)
+        res, ok = localize_multi(island, pts, Pose2D(0.0, 0.0, 0.0), c)
+        if not ok:
+            break
+        est = res.pose
+    return first
+
+
+def _random_start(island: Island, cfg: NavigateConfig, rng: np.random.Generator) -> Pose2D:
+    if island.origin_truth is None:
+        raise NavigateError(f"island {island.id} has no origin_truth: cannot place the robot")
+    rad = cfg.start_offset_m * math.sqrt(float(rng.uniform()))
+    ang = float(rng.uniform(-math.pi, math.pi))
+    dth = math.radians(cfg.start_offset_deg) * float(rng.uniform(-1.0, 1.0))
+    return island.origin_truth.compose(Pose2D(rad * math.cos(ang), rad * math.sin(ang), dth))
+
+
+@dataclass
+class SimSetup:
+    """What the simulated trip runs on: the world, sensor, body, odometry and hall perception."""
+
+    world: World
+    sonar: SonarConfig = field(default_factory=SonarConfig)
+    robot: RobotConfig = field(default_factory=RobotConfig)
+    odometry: OdometryConfig = field(default_factory=OdometryConfig)
+    follower: HallFollowerConfig = field(default_factory=HallFollowerConfig)
+
+
+def _route_edges(graph: TopoGraph, route: Sequence[int]) -> list[Edge]:
+    if len(route) < 1:
+        raise NavigateError("route: needs at least one island")
+    edges = []
+    for a, b in itertools.pairwise(route):
+        try:
+            edges.append(graph.get_edge(a, b))
+        except (GraphError, KeyError):
+            raise NavigateError(f"route: no edge {a}->{b} in the graph") from None
+    return edges
+
+
+def follow_route(
+    graph: TopoGraph,
+    route: Sequence[int],
+    setup: SimSetup,
+    cfg: NavigateConfig | None = None,
+    rng: np.random.Generator | None = None,
+    start: Pose2D | None = None,
+) -> RouteResult:
+    """Follow `route` (island ids joined by edges of `graph`) by island localization."""
+    c = cfg if cfg is not None else NavigateConfig()
+    gen = rng if rng is not None else np.random.default_rng(0)
+    edges = _route_edges(graph, route)
+    src = graph.get_island(route[0])
+    true_start = start if start is not None else _random_start(src, c, gen)
+    robot = SimRobot(setup.world, true_start, gen, setup.robot, setup.odometry)
+    sim = _Sim(setup.world, robot, SonarModel(setup.sonar), c, gen)
+    follower = HallFollower(setup.follower)
+    results: list[EdgeResult] = []
+    ok_all = True
+    try:
+        sim.deadline_s = sim.t + c.max_edge_time_s
+        trusted, _, _ = _localize_and_dock(sim, src, Pose2D(0.0, 0.0, 0.0))
+        ok_all = trusted
+        for e in edges if ok_all else []:
+            sim.deadline_s = sim.t + c.max_edge_time_s
+            execute_strategy(sim, e.strategy, follower)
+            trusted, err_m, err_deg = _localize_and_dock(
+                sim, graph.get_island(e.target), Pose2D(0.0, 0.0, 0.0)
+            )
+            good = trusted and err_m <= c.success_tol_m and err_deg <= c.success_tol_deg
+            results.append(
+                EdgeResult(e.source, e.target, str(e.strategy), trusted, err_m, err_deg, good)
+            )
+            if not good:
+                ok_all = False
+                break
+    except _SimTimeoutError:
+        ok_all = False
+    last = graph.get_island(results[-1].target if results else route[0])
+    fin_m, fin_deg = _pose_error(_truth_in(last, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
+    reached = last.id == route[-1]
+    success = ok_all and reached and fin_m <= c.success_tol_m and fin_deg <= c.success_tol_deg
+    return RouteResult(tuple(route), tuple(results), fin_m, fin_deg, success, sim.t)
+
+
+def follow_route_global_odometry(
+    graph: TopoGraph,
+    route: Sequence[int],
+    origins_odom: Mapping[int, Pose2D],
+    setup: SimSetup,
+    cfg: NavigateConfig | None = None,
+    rng: np.random.Generator | None = None,
+    start: Pose2D | None = None,
+) -> RouteResult:
+    """The baseline: the same trip on global odometry alone (see the module docstring)."""
+    c = cfg if cfg is not None else NavigateConfig()
+    gen = rng if rng is not None else np.random.default_rng(0)
+    edges = _route_edges(graph, route)
+    for i in route:
+        if i not in origins_odom:
+            raise NavigateError(f"baseline: no recorded odometric pose of island {i}")
+    src = graph.get_island(route[0])
+    true_start = start if start is not None else _random_start(src, c, gen)
+    robot = SimRobot(
+        setup.world, true_start, gen, setup.robot, setup.odometry, odom_start=origins_odom[route[0]]
+    )
+    sim = _Sim(setup.world, robot, SonarModel(setup.sonar), c, gen)
+    follower = HallFollower(setup.follower)
+    results: list[EdgeResult] = []
+    ok = True
+    try:
+        for e in edges:
+            sim.deadline_s = sim.t + c.max_edge_time_s
+            execute_strategy(sim, e.strategy, follower)
+            sim.go_to(origins_odom[e.target])
+            tgt = graph.get_island(e.target)
+            err_m, err_deg = _pose_error(_truth_in(tgt, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
+            good = err_m <= c.success_tol_m and err_deg <= c.success_tol_deg
+            results.append(
+                EdgeResult(e.source, e.target, str(e.strategy), False, err_m, err_deg, good)
+            )
+    except _SimTimeoutError:
+        ok = False
+    last = graph.get_island(results[-1].target if results else route[0])
+    fin_m, fin_deg = _pose_error(_truth_in(last, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
+    success = (
+        ok and last.id == route[-1] and fin_m <= c.success_tol_m and fin_deg <= c.success_tol_deg
+    )
+    return RouteResult(tuple(route), tuple(results), fin_m, fin_deg, success, sim.t)
+
+
+def with_reverse_edges(graph: TopoGraph) -> TopoGraph:
+    """A copy of the graph where every edge also exists backwards (graph.reverse_strategy)."""
+    edges = list(graph.iter_edges())
+    have = {(e.source, e.target) for e in edges}
+    for e in list(edges):
+        if (e.target, e.source) not in have:
+            edges.append(
+                Edge(
+                    e.target,
+                    e.source,
+                    reverse_strategy(e.strategy),
+                    e.weight,
+                    e.length_m,
+                    e.expected_error_m,
+                )
+            )
+            have.add((e.target, e.source))
+    return TopoGraph.from_parts(graph.islands(), edges)
+
+
+def evaluate_routes(
+    graph: TopoGraph,
+    setup: SimSetup,
+    n_pairs: int,
+    rng: np.random.Generator,
+    origins_odom: Mapping[int, Pose2D],
+    cfg: NavigateConfig | None = None,
+) -> RouteEvaluation:
+    """Success rates of `follow_route` and of the baseline over random island pairs.
+
+    Pairs are drawn uniformly among ordered pairs of distinct islands joined by a route in the
+    graph with every edge also usable backwards; both methods start from the same true pose.
+    """
+    c = cfg if cfg is not None else NavigateConfig()
+    if n_pairs < 1:
+        raise NavigateError(f"n_pairs: must be >= 1, got {n_pairs}")
+    g2 = with_reverse_edges(graph)
+    ids = g2.island_ids()
+    if len(ids) < 2:
+        raise NavigateError(f"evaluate_routes: needs at least 2 islands, the graph has {len(ids)}")
+    pairs: list[tuple[int, int]] = []
+    isl: list[RouteResult] = []
+    base: list[RouteResult] = []
+    for k in range(n_pairs):
+        a, b = (int(x) for x in rng.choice(ids, size=2, replace=False))
+        try:
+            route = g2.plan_route(a, b).islands
+        except GraphError:
+            continue
+        start = _random_start(g2.get_island(a), c, rng)
+        seed = int(rng.integers(2**31))
+        isl.append(follow_route(g2, route, setup, c, np.random.default_rng(seed), start))
+        base.append(
+            follow_route_global_odometry(
+                g2, route, origins_odom, setup, c, np.random.default_rng(seed), start
+            )
+        )
+        pairs.append((a, b))
+        del k
+    return RouteEvaluation(tuple(pairs), tuple(isl), tuple(base))

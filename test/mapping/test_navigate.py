@@ -1,0 +1,126 @@
+"""Navigating by the map (core.navigate) on a small hand-made graph in an L-shaped building."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from island_mapping.core.graph import TopoGraph
+from island_mapping.core.navigate import (
+    NavigateConfig,
+    NavigateError,
+    SimSetup,
+    evaluate_routes,
+    follow_route,
+    follow_route_global_odometry,
+    with_reverse_edges,
+)
+from island_msgs_py.types import ControlStrategy, Edge, Island, LineModel, ModelType, Pose2D
+from island_sim.core.world import World
+
+H = 1.25  # corridor half width [m]
+
+
+def l_world() -> World:
+    """A 20 m corridor along x (closed at x = 0) turning left into a 13.75 m corridor along y
+    (closed at y = 15)."""
+    segs = [[0, -H, 0, H], [0, -H, 20, -H], [20, -H, 20, 15], [0, H, 17.5, H],
+            [17.5, H, 17.5, 15], [17.5, 15, 20, 15]]
+    return World(np.array(segs, float), "L")
+
+
+def model_at(world: World, origin: Pose2D, radius_m: float = 6.5) -> LineModel:
+    """The world's walls within radius_m of the origin, in the island frame (a hand-made model)."""
+    out = []
+    for x1, y1, x2, y2 in world.segments:
+        n = max(2, int(math.hypot(x2 - x1, y2 - y1) / 0.05))
+        t = np.linspace(0.0, 1.0, n)
+        p = np.stack([x1 + t * (x2 - x1), y1 + t * (y2 - y1)], axis=1)
+        p = p[np.hypot(p[:, 0] - origin.x, p[:, 1] - origin.y) < radius_m]
+        if len(p) >= 2:
+            a = Pose2D(p[0, 0], p[0, 1], 0.0).relative_to(origin)
+            b = Pose2D(p[-1, 0], p[-1, 1], 0.0).relative_to(origin)
+            out.append([a.x, a.y, b.x, b.y])
+    return LineModel(np.array(out))
+
+
+ORIGINS = (Pose2D(2.0, 0.0, 0.0), Pose2D(18.75, 0.0, math.pi / 2), Pose2D(18.75, 12.5, math.pi / 2))
+# What a drifting odometry recorded at exploration time for the same three places.
+ODOM_AT_EXPLORATION = {
+    0: ORIGINS[0],
+    1: Pose2D(18.9, 0.3, math.pi / 2 + 0.02),
+    2: Pose2D(19.5, 12.9, math.pi / 2 + 0.05),
+}
+
+
+def make_graph(world: World) -> TopoGraph:
+    islands = [
+        Island(i, model_at(world, o), ModelType.LINE, 1.0, 0.0, origin_truth=o)
+        for i, o in enumerate(ORIGINS)
+    ]
+    edges = [
+        Edge(0, 1, ControlStrategy.parse("Go 1675, Rot 90"), 17.0),
+        Edge(1, 2, ControlStrategy.parse("Go 1250"), 12.5),
+    ]
+    return TopoGraph.from_parts(islands, edges)
+
+
+def test_route_by_islands_succeeds_where_global_odometry_misses() -> None:
+    world = l_world()
+    graph, setup = make_graph(world), SimSetup(world)
+    res = follow_route(graph, [0, 1, 2], setup, rng=np.random.default_rng(1))
+    assert res.success, res
+    assert [(e.source, e.target) for e in res.edges] == [(0, 1), (1, 2)]
+    cfg = NavigateConfig()
+    for e in res.edges:
+        assert e.localized and e.success
+        assert e.error_m < cfg.success_tol_m and e.error_deg < cfg.success_tol_deg
+    assert res.final_error_m < cfg.success_tol_m
+    base = follow_route_global_odometry(
+        graph, [0, 1, 2], ODOM_AT_EXPLORATION, setup, rng=np.random.default_rng(1)
+    )
+    assert not base.success
+    # The baseline ends where exploration-time odometry put island 2, ~0.6 m off its true origin.
+    assert base.final_error_m > 0.4
+    assert res.final_error_m < base.final_error_m
+
+
+def test_a_wrong_island_model_is_reported_as_a_failed_edge() -> None:
+    world = l_world()
+    graph = make_graph(world)
+    # Island 1 gets the model of a plain stretch of corridor: localization there cannot hold.
+    plain = model_at(world, Pose2D(9.0, 0.0, 0.0), radius_m=4.0)
+    graph.replace_island(Island(1, plain, ModelType.LINE, 1.0, 0.0, origin_truth=ORIGINS[1]))
+    res = follow_route(graph, [0, 1, 2], SimSetup(world), rng=np.random.default_rng(2))
+    assert not res.success
+    assert len(res.edges) == 1  # stopped at the failed edge
+    assert not res.edges[0].success
+
+
+def test_evaluate_routes_uses_both_directions_and_compares_with_the_baseline() -> None:
+    world = l_world()
+    graph = make_graph(world)
+    both = with_reverse_edges(graph)
+    assert both.num_edges == 4
+    assert str(both.get_edge(2, 1).strategy) == "Rot 180, Go 1250, Rot 180"
+    ev = evaluate_routes(graph, SimSetup(world), 3, np.random.default_rng(5), ODOM_AT_EXPLORATION)
+    assert len(ev.pairs) == 3 == len(ev.islands) == len(ev.baseline)
+    assert ev.islands_success_rate == 1.0
+    assert ev.baseline_success_rate < ev.islands_success_rate
+    for r, b in zip(ev.islands, ev.baseline, strict=True):
+        assert r.route == b.route
+
+
+def test_bad_inputs_are_named() -> None:
+    world = l_world()
+    graph = make_graph(world)
+    with pytest.raises(NavigateError, match="no edge 0->2"):
+        follow_route(graph, [0, 2], SimSetup(world))
+    with pytest.raises(NavigateError, match="island 2"):
+        follow_route_global_odometry(graph, [0, 1, 2], {0: ORIGINS[0], 1: ORIGINS[1]},
+                                     SimSetup(world))
+    with pytest.raises(NavigateError, match="success_tol_m"):
+        NavigateConfig(success_tol_m=0.0)
+    with pytest.raises(NavigateError, match="n_pairs"):
+        evaluate_routes(graph, SimSetup(world), 0, np.random.default_rng(0), ODOM_AT_EXPLORATION)
