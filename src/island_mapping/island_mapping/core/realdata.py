@@ -533,8 +533,8 @@ class RealIslandConfig:
     )
     align_window: bool = field(
         default=True,
-        metadata={"help": "localize each window scan against the model built so far before "
-                  "adding its points (False: place them by raw odometry only) [bool]"},
+        metadata={"help": "place each window scan by localizing it against the anchor scan's "
+                  "own line model (False: by raw odometry only) [bool]"},
     )
     voxel_m: float = field(
         default=0.05,
@@ -867,22 +867,20 @@ def _window_model(
         order += [j for j in (anchor + d, anchor - d) if 0 <= j < raw.shape[0]]
     placed: list[tuple[int, FloatArray]] = []
     clouds: list[FloatArray] = []
-    model: LineModel | None = None
+    anchor_model: LineModel | None = None
     for j in order:
         guess = relative_poses(raw[anchor], raw[j])[0]
         pose = guess
         pts = scans.points[j]
-        if cfg.align_window and model is not None and len(model) and pts.shape[0]:
-            fix = loc(model, pts, guess)
+        if anchor_model is not None and len(anchor_model) and pts.shape[0]:
+            fix = loc(anchor_model, pts, guess)
             if _fix_ok(fix, guess, cfg, pts.shape[0]):
                 pose = fix.pose
         placed.append((j, pose))
         clouds.append(transform_points(pose, pts))
-        if cfg.align_window:
-            model = fit(voxel_thin(np.concatenate(clouds), cfg.voxel_m))
+        if cfg.align_window and j == anchor:
+            anchor_model = fit(voxel_thin(pts, cfg.voxel_m))
     all_pts = np.concatenate(clouds) if clouds else np.zeros((0, 2))
-    if cfg.align_window and model is not None:
-        return model, placed
     final = fit(voxel_thin(all_pts, cfg.voxel_m))
     return final, placed
 
