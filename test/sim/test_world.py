@@ -229,3 +229,15 @@ def test_map_server_yaml(tmp_path: Path) -> None:
     sp = world.start_pose
     assert 0.0 < sp.y - 1.0 < 10.0
     assert np.isfinite(world.raycast([sp.x, sp.y], [sp.theta]).distance_m[0])
+
+
+def test_index_far_origins_fall_back_to_brute_force() -> None:
+    world = _random_world(300, 4)
+    o = np.array([[1e12, 20.0], [-1e12, 20.0], [20.0, 20.0]])
+    a = np.array([math.pi, 0.0, 1.0])
+    fast = world.raycast(o, a)
+    slow = raycast(world.segments, o, a)
+    assert np.array_equal(fast.distance_m, slow.distance_m)
+    only_far = world.raycast(o[:2], a[:2])
+    assert np.array_equal(only_far.segment, slow.segment[:2])
+    assert world.raycast(np.zeros((0, 2)), np.zeros(0)).distance_m.shape == (0,)

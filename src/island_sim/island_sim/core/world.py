@@ -133,6 +133,10 @@ _BOX_MARGIN_M = 1e-6
 _MAX_PAIRS = 1 << 21
 # Origin cell indices beyond this are not indexed (such rays go to brute force).
 _MAX_CELL = 1 << 30
+# Rays whose candidates exceed 1 / this of all segments test all segments (no gather).
+_DENSE_FRACTION_INV = 2
+# Calls with at most this many rays skip the per-count bucketing.
+_SMALL_CALL_RAYS = 1024
 # Search radii whose per-cell candidate lists are kept.
 _MAX_CACHED_RADII = 8
 
@@ -196,35 +200,61 @@ class SegmentIndex:
                 hits = raycast(self.segments, o[fr], a[fr], max_range_m)
                 dist[fr], seg[fr] = hits.distance_m, hits.segment
                 pending, cij_f = pending[~far], cij_f[~far]
+                if pending.size == 0:
+                    break
             cij = cij_f.astype(np.int64) + _MAX_CELL
             keys = cij[:, 0] * (2 * _MAX_CELL + 1) + cij[:, 1]
             ukeys, inv = np.unique(keys, return_inverse=True)
             lists = self._candidates(r, ukeys)
             counts = np.array([c.size for c in lists], dtype=np.int64)
-            kmax = max(1, int(counts.max())) if counts.size else 1
-            table = np.full((ukeys.size, kmax), n, dtype=np.int64)
-            for row, c in enumerate(lists):
-                table[row, : c.size] = c
-            final = (counts[inv] == n) | (r >= max_range_m)
+            ray_counts = counts[inv]
+            final = (ray_counts == n) | (r >= max_range_m)
             t = np.empty(pending.size)
             jg = np.empty(pending.size, dtype=np.int64)
-            step = max(1, _MAX_PAIRS // kmax)
-            for s in range(0, pending.size, step):
-                rays = pending[s : s + step]
-                cand = table[inv[s : s + step]]  # (R, K) global segment indices, padded with n
-                ts = _hit_distances(
-                    self._p[cand, 0],
-                    self._p[cand, 1],
-                    self._e[cand, 0],
-                    self._e[cand, 1],
-                    o[rays, 0:1],
-                    o[rays, 1:2],
-                    u[rays, 0:1],
-                    u[rays, 1:2],
+            # Buckets of rays with similar candidate counts (padding wastes at most 2x); rays
+            # with candidates for most of the world test all segments by broadcasting instead.
+            if pending.size <= _SMALL_CALL_RAYS:  # one bucket: less bookkeeping per call
+                dense = int(ray_counts.max()) * _DENSE_FRACTION_INV >= n
+                bucket = np.full(pending.size, -1 if dense else 0, dtype=np.int64)
+            else:
+                bucket = np.where(
+                    ray_counts * _DENSE_FRACTION_INV >= n,
+                    -1,
+                    np.ceil(np.log2(np.maximum(ray_counts, 1))).astype(np.int64),
                 )
-                col = np.argmin(ts, axis=1)
-                t[s : s + step] = ts[np.arange(rays.size), col]
-                jg[s : s + step] = cand[np.arange(rays.size), col]
+            buckets = np.unique(bucket).tolist() if bucket.size > _SMALL_CALL_RAYS else [bucket[0]]
+            for b in buckets:
+                sel = np.flatnonzero(bucket == b)
+                if b < 0:
+                    for s in range(0, sel.size, max(1, _MAX_PAIRS // n)):
+                        ii = sel[s : s + max(1, _MAX_PAIRS // n)]
+                        rays = pending[ii]
+                        t[ii], jg[ii] = _nearest_hits(self._p[:n], self._e[:n], o[rays], a[rays])
+                    continue
+                kmax = max(1, int(ray_counts[sel].max()))
+                rows = np.unique(inv[sel])
+                table = np.full((ukeys.size, kmax), n, dtype=np.int64)
+                for row in rows.tolist():
+                    c = lists[row]
+                    table[row, : c.size] = c
+                step = max(1, _MAX_PAIRS // kmax)
+                for s in range(0, sel.size, step):
+                    ii = sel[s : s + step]
+                    rays = pending[ii]
+                    cand = table[inv[ii]]  # (R, K) global segment indices, padded with n
+                    ts = _hit_distances(
+                        self._p[cand, 0],
+                        self._p[cand, 1],
+                        self._e[cand, 0],
+                        self._e[cand, 1],
+                        o[rays, 0:1],
+                        o[rays, 1:2],
+                        u[rays, 0:1],
+                        u[rays, 1:2],
+                    )
+                    col = np.argmin(ts, axis=1)
+                    t[ii] = ts[np.arange(ii.size), col]
+                    jg[ii] = cand[np.arange(ii.size), col]
             ok = np.isfinite(t) & (t <= max_range_m) & (final | (t <= r))
             dist[pending[ok]] = t[ok]
             seg[pending[ok]] = jg[ok]
