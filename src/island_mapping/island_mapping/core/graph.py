@@ -49,9 +49,11 @@ from scipy.sparse.csgraph import dijkstra
 
 from island_msgs_py import json_io
 
-# From this many islands on, plan on a cached CSR matrix with scipy (C Dijkstra); below it,
-# networkx's bidirectional Dijkstra is faster because it needs no matrix build (bench measured).
-SCIPY_MIN_ISLANDS = 2000
+# From this many islands on, plan on a cached CSR matrix with scipy (C Dijkstra). Measured
+# (bench/bench_route_planning.py): at 1,000 islands a CSR rebuild + query costs about what one
+# networkx bidirectional query does and later queries are 5x faster; below it networkx wins
+# because every change would force a rebuild.
+SCIPY_MIN_ISLANDS = 1000
 # Shortest-path trees of this many recent sources are kept until the graph changes.
 ROUTE_TREE_CACHE_SIZE = 8
 GEOJSON_FORMAT = "islands-graph-geojson"
