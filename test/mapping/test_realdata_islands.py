@@ -1,0 +1,154 @@
+"""Offline islands on real data: scoring by hand, eq. 3 decisions, and the first scans of the
+Intel Research Lab log end to end (laser and sonar-like mode)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from island_mapping.core import realdata as rd
+from island_msgs_py.types import Island, LineModel, ModelType
+
+N_SCANS = 100  # ~5 min of the Intel log; keeps the end-to-end test to a few seconds
+
+
+def _run(scan_island: list[int], scan_pose: list[list[float]]) -> rd.IslandRun:
+    model = LineModel(np.array([[0.0, -1.0, 0.0, 1.0]]))
+    isl = rd.RealIsland(Island(0, model, ModelType.LINE, 1.0, 0.0), 0, np.zeros(3))
+    return rd.IslandRun(
+        (isl, isl), (), np.asarray(scan_island, dtype=np.int64), np.asarray(scan_pose, float),
+        np.zeros(len(scan_island)), rd.RealIslandConfig(),
+    )
+
+
+def test_score_relations_uses_island_frame_poses_of_the_same_island() -> None:
+    nan = [math.nan] * 3
+    run = _run([0, 0, 1, -1], [[0, 0, 0], [1.0, 0.0, math.radians(90)], [0, 0, 0], nan])
+    scan_t = np.array([10.0, 20.0, 30.0, 40.0])
+    u = rd.INTEL_LOG_TO_UNIX_S
+    rel = rd.Relations(
+        t1_s=np.array([10.0, 10.0, 10.0, 10.004]) + u,
+        t2_s=np.array([20.0, 30.0, 40.0, 20.5]) + u,  # same island; other island; none; no scan
+        rel=np.array([[1.05, 0.0, math.radians(88.0)], [0, 0, 0], [0, 0, 0], [1.0, 0, 0]]),
+    )
+    score = rd.score_relations(run, scan_t, rel)
+    assert score.covered.tolist() == [True, False, False, False]
+    assert score.trans_err_m[0] == pytest.approx(0.05)
+    assert score.rot_err_deg[0] == pytest.approx(2.0)
+    assert score.islands.count == 1 and score.ends_at_scans == 3
+    assert np.isnan(score.trans_err_m[1:]).all()
+
+
+def test_bridging_adds_raw_odometry_from_the_nearer_localized_scan() -> None:
+    # Scans at 0 s and 4 s in island 0; an ODOM line at 1 s, raw odometry 0.3 m ahead of scan 0.
+    lines = [
+        "FLASER 2 1 1 0 0 0 0 0 0 0.0 h 0.0\n",
+        "ODOM 0.3 0 0 0 0 0 1.0 h 1.0\n",
+        "ODOM 0.6 0 0 0 0 0 2.9 h 2.9\n",
+        "ODOM 0.8 0 0 0 0 0 3.5 h 3.5\n",
+        "FLASER 2 1 1 1.0 0 0 0 0 0 4.0 h 4.0\n",
+    ]
+    track = rd.parse_pose_track(lines)
+    run = _run([0, 0], [[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
+    u = rd.INTEL_LOG_TO_UNIX_S
+    rel = rd.Relations(np.array([0.0 + u]), np.array([1.0 + u]), np.array([[0.32, 0.0, 0.0]]))
+    strict = rd.score_relations(run, np.array([0.0, 4.0]), rel, track)
+    assert not strict.covered.any()
+    bridged = rd.score_relations(run, np.array([0.0, 4.0]), rel, track, bridge_s=1.5)
+    assert bridged.covered.tolist() == [True]
+    assert bridged.trans_err_m[0] == pytest.approx(0.02)  # 0.3 m by odometry vs 0.32 m true
+    # The ODOM line at 2.9 s is nearer to scan 1: its fix 1.1 m minus the 0.2 m that raw
+    # odometry still moved before scan 1 = 0.9 m.
+    i, p, _ = rd.island_poses_at(run, np.array([0.0, 4.0]), np.array([2.9 + u]), track=track,
+                                 bridge_s=1.5)
+    assert i.tolist() == [0] and p[0, 0] == pytest.approx(0.9)
+    # Too far from any scan for a 0.5 s bridge: no pose.
+    i2, _, _ = rd.island_poses_at(run, np.array([0.0, 4.0]), np.array([1.0 + u]), track=track,
+                                  bridge_s=0.5)
+    assert i2.tolist() == [-1]
+
+
+@pytest.fixture(scope="module")
+def intel(shared_data: Path) -> tuple[rd.PoseTrack, np.ndarray, rd.Relations]:
+    from island_mapping.bag.carmen import read_carmen
+
+    log = read_carmen(shared_data / "intel" / "intel.gfs.log")
+    track = rd.read_pose_track(shared_data / "intel" / "intel.gfs.log")
+    rel = rd.read_relations(shared_data / "intel" / "intel.relations")
+    return track, log.ranges_m, rel
+
+
+@pytest.fixture(scope="module")
+def laser_run(intel: tuple[rd.PoseTrack, np.ndarray, rd.Relations]) -> rd.IslandRun:
+    track, ranges, _ = intel
+    rows = track.scan_rows[:N_SCANS]
+    return rd.build_islands_offline(ranges[:N_SCANS], track.raw[rows], track.times_s[rows])
+
+
+def test_islands_on_the_first_intel_scans_follow_eq3(laser_run: rd.IslandRun) -> None:
+    run = laser_run
+    cfg = run.config
+    assert len(run.islands) >= 1
+    for a in run.attempts:
+        assert a.epsilon_m > cfg.builder.e_min_m  # attempts only when lost
+        assert a.accepted == (a.best_normalized > a.bound)  # eq. 3
+        assert a.bound == pytest.approx(max(cfg.builder.e_min_m / a.epsilon_m,
+                                            cfg.builder.bound_floor))
+    accepted = [a for a in run.attempts if a.accepted]
+    assert [a.scan for a in accepted] == [i.anchor_scan for i in run.islands]
+    for isl in run.islands:
+        assert len(isl.island.model) >= 3
+        assert run.scan_island[isl.anchor_scan] == isl.island.id
+        # The anchor is the island's origin: its fix stays close to (0, 0, 0).
+        p = run.scan_pose[isl.anchor_scan]
+        assert math.hypot(p[0], p[1]) < 0.2 and abs(p[2]) < math.radians(5)
+    inside = run.scan_island >= 0
+    assert inside.sum() >= 10
+    dist = np.hypot(run.scan_pose[inside, 0], run.scan_pose[inside, 1])
+    assert np.all(dist <= cfg.coverage_radius_m + 1e-9)
+    assert np.all(run.epsilon_m[inside] < 1.0)
+
+
+def test_island_localization_beats_a_loose_bound_on_covered_relations(
+    laser_run: rd.IslandRun, intel: tuple[rd.PoseTrack, np.ndarray, rd.Relations]
+) -> None:
+    track, _, rel = intel
+    scan_t = track.times_s[track.scan_rows[:N_SCANS]]
+    score = rd.score_relations(laser_run, scan_t, rel, track, bridge_s=1.7)
+    assert score.islands.count >= 20
+    assert score.islands.mean_trans_err_m < 0.08
+    assert score.islands.mean_rot_err_deg < 3.0
+    # Errors are per relation and finite exactly where covered.
+    assert np.isfinite(score.trans_err_m[score.covered]).all()
+    assert score.gmapping_covered.count == score.islands.count
+
+
+def test_sonar_like_mode_keeps_few_beams_and_still_builds_islands(
+    intel: tuple[rd.PoseTrack, np.ndarray, rd.Relations],
+) -> None:
+    track, ranges, _ = intel
+    n = 60
+    rows = track.scan_rows[:n]
+    cfg = rd.sonar_like_config(24)
+    assert cfg.beams == 24 and cfg.max_range_m == rd.SONAR_LIKE_RANGE_M
+    seen: list[int] = []
+
+    def fitter(points: np.ndarray) -> LineModel:
+        seen.append(points.shape[0])
+        return rd.core_fitter(cfg.line_fit)(points)
+
+    run = rd.build_islands_offline(ranges[:n], track.raw[rows], track.times_s[rows], cfg,
+                                   fitter=fitter)
+    window = 2 * cfg.half_window_scans + 1
+    assert seen and max(seen) <= 24 * window
+    assert len(run.attempts) >= 1
+    assert len(run.islands) >= 1
+
+
+def test_bad_inputs_are_clear_errors() -> None:
+    with pytest.raises(rd.RealDataError, match="beams"):
+        rd.RealIslandConfig(beams=32)
+    with pytest.raises(rd.RealDataError, match="ranges"):
+        rd.build_islands_offline(np.zeros((3, 180)), np.zeros((2, 3)), np.zeros(3))
