@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from island_msgs_py.types import Pose2D
 from island_sim.core.sonar import SonarConfig, SonarError, SonarModel, ranges_to_points
-from island_sim.core.world import World
+from island_sim.core.world import World, load_world
 
 IDEAL = SonarConfig(ideal=True)
 NOISELESS = SonarConfig(noise_std_m=0.0)
@@ -64,6 +64,34 @@ def test_ideal_ranges_equal_independent_cast() -> None:
             else:
                 assert math.isinf(ranges[i])
     assert checked > 300
+
+
+def test_ideal_ranges_equal_independent_cast_in_paper_fig4() -> None:
+    # 130 segments: World.raycast goes through the spatial index here.
+    from island_sim.core.worlds_builtin import BUILTIN_FREE_RECTS
+
+    world = load_world("paper_fig4")
+    rects = BUILTIN_FREE_RECTS["paper_fig4"]()
+    rng = np.random.default_rng(11)
+    poses = []
+    for k in rng.choice(len(rects), 30):
+        x0, y0, x1, y1 = rects[k]
+        poses.append([rng.uniform(x0, x1), rng.uniform(y0, y1), rng.uniform(-math.pi, math.pi)])
+    model = SonarModel(IDEAL)
+    scans = model.scan_many(world, np.array(poses))
+    finite = 0
+    for (x, y, th), ranges in zip(poses, scans, strict=True):
+        for b, r in zip(model.angles_rad, ranges, strict=True):
+            ox = x + IDEAL.ring_radius_m * math.cos(th + b)
+            oy = y + IDEAL.ring_radius_m * math.sin(th + b)
+            d = _independent_ray(world.segments, ox, oy, th + b)
+            if IDEAL.range_min_m <= d <= IDEAL.range_max_m:
+                assert r == pytest.approx(d + IDEAL.ring_radius_m, abs=1e-3)
+                finite += 1
+            else:
+                assert math.isinf(r)
+    assert finite > 200
+    assert model.scan_many(world, np.zeros((0, 3))).shape == (0, 16)
 
 
 def test_angles_and_limits() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import itertools
 import json
 import math
@@ -68,6 +69,10 @@ def test_world_is_immutable_and_validated() -> None:
     with pytest.raises(WorldError, match="segment 1 has a NaN"):
         World(np.array([[0.0, 0, 1, 0], [0, np.nan, 1, 1]]))
     assert World([]).segments.shape == (0, 4)
+    assert World([]).bounds == (0.0, 0.0, 0.0, 0.0)
+    big = load_world("paper_fig4")
+    big.raycast([12.0, 9.0], [0.0])  # builds the index (which holds a lock)
+    assert copy.deepcopy(big) is big and copy.copy(big) is big
 
 
 def _clearance(world: World, x: float, y: float) -> float:

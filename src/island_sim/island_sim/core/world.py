@@ -57,9 +57,17 @@ class World:
         arr.setflags(write=False)
         object.__setattr__(self, "segments", arr)
 
+    def __copy__(self) -> World:
+        return self  # immutable
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> World:
+        return self  # immutable; the cached index holds a lock that cannot be copied
+
     @property
     def bounds(self) -> tuple[float, float, float, float]:
-        """(xmin, ymin, xmax, ymax) [m] of all segment endpoints."""
+        """(xmin, ymin, xmax, ymax) [m] of all segment endpoints (0s for an empty world)."""
+        if self.segments.shape[0] == 0:
+            return 0.0, 0.0, 0.0, 0.0
         pts = self.segments.reshape(-1, 2)
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
