@@ -296,13 +296,22 @@ def test_geojson_is_nav2_shaped_and_round_trips(tmp_path: Path) -> None:
 def test_geojson_import_errors_name_the_feature() -> None:
     doc = small_graph().to_geojson()
     doc["features"][1]["properties"]["metadata"]["r"] = "high"
-    with pytest.raises(GraphFormatError, match=r"features\[1\]\.properties\.r: expected a number"):
+    with pytest.raises(GraphFormatError,
+                       match=r"^features\[1\]\.properties\.metadata\.r: expected a number"):
+        TopoGraph.from_geojson(doc)
+    doc = small_graph().to_geojson()
+    doc["features"][2]["properties"]["metadata"]["segments"][5] = math.nan
+    with pytest.raises(GraphFormatError,
+                       match=r"^features\[2\]\.properties\.metadata\.segments\[4:8\]: NaN"):
         TopoGraph.from_geojson(doc)
     doc = small_graph().to_geojson()
     k = next(k for k, f in enumerate(doc["features"])
              if f["geometry"]["type"] != "Point" and not f["properties"]["metadata"]["derived"])
     doc["features"][k]["properties"]["endid"] = 99
     with pytest.raises(GraphFormatError, match="unknown target island 99"):
+        TopoGraph.from_geojson(doc)
+    doc["features"][k]["properties"]["cost"] = -2.0
+    with pytest.raises(GraphFormatError, match=rf"^features\[{k}\]\.properties\.cost: must be"):
         TopoGraph.from_geojson(doc)
     with pytest.raises(GraphFormatError, match="FeatureCollection"):
         TopoGraph.from_geojson({"type": "Feature"})

@@ -19,6 +19,7 @@ accepted change with a write-ahead log (fsync per change) plus atomic snapshots.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import fcntl
 import itertools
@@ -581,26 +582,28 @@ class TopoGraph:
                         f"{mp}.segments", "expected a flat list of 4 * num_segments numbers"
                     )
                 rows = [flat[4 * j: 4 * j + 4] for j in range(num)]
-                islands.append(json_io.island_from_dict({
-                    "id": props.get("id"),
-                    "frame_id": props.get("frame", ""),
-                    "model_type": meta.get("model_type"),
-                    "r": meta.get("r"),
-                    "built_at_s": meta.get("built_at_s"),
-                    "model": {"segments": rows},
-                    "origin_truth": meta.get("origin_truth"),
-                }, f"{path}.properties"))
+                with _geojson_paths(f"{path}.properties", _NODE_KEYS):
+                    islands.append(json_io.island_from_dict({
+                        "id": props.get("id"),
+                        "frame_id": props.get("frame", ""),
+                        "model_type": meta.get("model_type"),
+                        "r": meta.get("r"),
+                        "built_at_s": meta.get("built_at_s"),
+                        "model": {"segments": rows},
+                        "origin_truth": meta.get("origin_truth"),
+                    }, f"{path}.properties"))
             elif gtype in ("MultiLineString", "LineString"):
                 if meta.get("derived", False):
                     continue
-                edges.append(json_io.edge_from_dict({
-                    "source": props.get("startid"),
-                    "target": props.get("endid"),
-                    "strategy": meta.get("strategy", ""),
-                    "weight": props.get("cost", 0.0),
-                    "length_m": meta.get("length_m", 0.0),
-                    "expected_error_m": meta.get("expected_error_m", 0.0),
-                }, f"{path}.properties"))
+                with _geojson_paths(f"{path}.properties", _EDGE_KEYS):
+                    edges.append(json_io.edge_from_dict({
+                        "source": props.get("startid"),
+                        "target": props.get("endid"),
+                        "strategy": meta.get("strategy", ""),
+                        "weight": props.get("cost", 0.0),
+                        "length_m": meta.get("length_m", 0.0),
+                        "expected_error_m": meta.get("expected_error_m", 0.0),
+                    }, f"{path}.properties"))
             else:
                 raise GraphFormatError(f"{path}.geometry.type", f"unsupported geometry {gtype!r}")
         try:
@@ -710,6 +713,38 @@ class TopoGraph:
             return self.save_graphml(path)
         raise GraphFormatError(str(path), f"unknown graph file extension {suffix!r} "
                                "(.json, .geojson, .graphml)")
+
+
+# Where the fields of our island/edge JSON live in a Nav2 GeoJSON feature's properties.
+_NODE_KEYS = {
+    "frame_id": "frame", "model_type": "metadata.model_type", "r": "metadata.r",
+    "built_at_s": "metadata.built_at_s", "origin_truth": "metadata.origin_truth",
+    "model": "metadata.segments",
+}
+_EDGE_KEYS = {
+    "source": "startid", "target": "endid", "weight": "cost", "strategy": "metadata.strategy",
+    "length_m": "metadata.length_m", "expected_error_m": "metadata.expected_error_m",
+}
+
+
+@contextlib.contextmanager
+def _geojson_paths(prefix: str, keys: Mapping[str, str]) -> Iterator[None]:
+    """Rename field paths in GraphFormatErrors from our JSON names to the GeoJSON ones."""
+    try:
+        yield
+    except GraphFormatError as exc:
+        p = exc.path
+        if p.startswith(prefix + "."):
+            head, _, tail = p[len(prefix) + 1:].partition(".")
+            key = head.split("[")[0]
+            if key in keys:
+                p = f"{prefix}.{keys[key]}"
+                if key == "model" and tail.startswith("segments["):
+                    row = int(tail[len("segments["):].split("]")[0])
+                    p += f"[{4 * row}:{4 * row + 4}]"
+                elif tail:
+                    p += "." + tail
+        raise GraphFormatError(p, exc.problem) from exc
 
 
 def _model_points(segments: np.ndarray, pose: Pose2D) -> np.ndarray:

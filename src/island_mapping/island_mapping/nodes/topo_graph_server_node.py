@@ -195,7 +195,7 @@ class TopoGraphServerNode(Node):
 
 def main(args: Sequence[str] | None = None) -> int:
     ensure_ros_env()
-    rclpy.init(args=args)
+    rclpy.init(args=list(args) if args is not None else None)
     try:
         node = TopoGraphServerNode()
     except (GraphFormatError, GraphError, OSError) as exc:
