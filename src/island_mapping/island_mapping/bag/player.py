@@ -26,8 +26,9 @@ from island_mapping.bag.writer import CLOCK_TOPIC
 
 MAX_SPIN_S = 0.05
 """Longest single executor wait while playing, so Ctrl-C and loop ends stay responsive [s]."""
-BUSY_WAIT_S = 0.002
-"""Below this remaining wait, sleep instead of spinning (an executor wake-up costs more) [s]."""
+SPIN_MARGIN_S = 0.003
+"""Stop spinning this long before a message is due and sleep the rest: an executor wake-up
+is late by about a millisecond, a sleep by tens of microseconds [s]."""
 
 
 class BagPlayer:
@@ -164,7 +165,7 @@ class BagPlayer:
             wait = self.tick()
             if wait is None:
                 return
-            if wait > BUSY_WAIT_S:
-                executor.spin_once(timeout_sec=min(wait - BUSY_WAIT_S / 2, MAX_SPIN_S))
+            if wait > SPIN_MARGIN_S:
+                executor.spin_once(timeout_sec=min(wait - SPIN_MARGIN_S, MAX_SPIN_S))
             elif wait > 0:
                 time.sleep(wait)

@@ -16,7 +16,7 @@ import re
 import sys
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from island_mapping.bag.errors import MessageTypeError
 
@@ -172,8 +172,7 @@ def stamp_ns_from_cdr(data: bytes) -> int | None:
     """Nanoseconds of the leading Time of a CDR payload (see stamp_is_first_field), None if 0."""
     if len(data) < 12:
         return None
-    little = data[1] in (0x01, 0x03)
-    order = "little" if little else "big"
+    order: Literal["little", "big"] = "little" if data[1] in (0x01, 0x03) else "big"
     sec = int.from_bytes(data[4:8], order, signed=True)
     nsec = int.from_bytes(data[8:12], order, signed=False)
     if sec == 0 and nsec == 0:

@@ -89,7 +89,7 @@ def _raise_interrupt(signum: int, frame: object) -> None:
 
 def main(args: Sequence[str] | None = None) -> int:
     ensure_ros_env()
-    rclpy.init(args=args)
+    rclpy.init(args=list(args) if args is not None else None)
     signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
         node = RecorderNode()
