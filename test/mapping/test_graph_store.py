@@ -131,3 +131,19 @@ def test_one_writer_at_a_time_and_read_only_changes_nothing(tmp_path: Path) -> N
     assert ro.graph.island_ids() == [0, 1, 2]
     with pytest.raises(GraphFormatError, match="no such graph store"):
         GraphStore.read(tmp_path / "missing")
+
+
+def test_malformed_records_are_errors_naming_the_line(tmp_path: Path) -> None:
+    with GraphStore(tmp_path) as store:
+        _fill(store, 2)
+    log = tmp_path / GraphStore.LOG
+    good = log.read_text()
+    for bad, message in [
+        ('{"seq": 9, "op": "remove_island"}', r"changes\.jsonl:4: malformed remove_island"),
+        ('{"seq": 9, "op": "fly"}', r"changes\.jsonl:4\.op: unknown operation 'fly'"),
+        ('{"op": "put_edge"}', r"changes\.jsonl:4: change record without an integer seq"),
+        ('{"seq": 9, "op": "remove_edge", "source": 0, "target": 7}', "cannot replay: no edge"),
+    ]:
+        log.write_text(good + bad + "\n")
+        with pytest.raises(GraphFormatError, match=message):
+            GraphStore(tmp_path)

@@ -874,8 +874,12 @@ class GraphStore:
             raise GraphError(
                 f"graph store {self.directory} is in use by another process"
             ) from None
-        self._load()
-        self._log = open(self.directory / self.LOG, "a", encoding="utf-8")
+        try:
+            self._load()
+            self._log = open(self.directory / self.LOG, "a", encoding="utf-8")
+        except BaseException:
+            self.close()
+            raise
 
     @classmethod
     def read(cls, directory: str | os.PathLike[str]) -> TopoGraph:
@@ -949,6 +953,10 @@ class GraphStore:
                 raise GraphFormatError(f"{where}.op", f"unknown operation {op!r}")
         except GraphError as exc:
             raise GraphFormatError(where, f"cannot replay: {exc}") from exc
+        except (KeyError, TypeError, ValueError) as exc:
+            if isinstance(exc, GraphFormatError):
+                raise
+            raise GraphFormatError(where, f"malformed {op} record: {exc!r}") from exc
         self._seq = seq
 
     # --- changes -------------------------------------------------------------------------------
