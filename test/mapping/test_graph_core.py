@@ -252,11 +252,12 @@ def test_json_round_trip(tmp_path: Path) -> None:
 
 
 def _no_nested_lists(obj: Any) -> bool:
+    """Nav2's GeoJSON loader takes objects, primitives and arrays of primitives; no nulls."""
     if isinstance(obj, dict):
         return all(_no_nested_lists(v) for v in obj.values())
     if isinstance(obj, list):
-        return all(not isinstance(v, list | dict) for v in obj)
-    return True
+        return all(isinstance(v, int | float | str | bool) for v in obj)
+    return obj is not None
 
 
 def test_geojson_is_nav2_shaped_and_round_trips(tmp_path: Path) -> None:
@@ -278,6 +279,7 @@ def test_geojson_is_nav2_shaped_and_round_trips(tmp_path: Path) -> None:
     pairs = {(f["properties"]["startid"], f["properties"]["endid"]) for f in lines}
     for e in g.edges():
         assert (e.source, e.target) in pairs and (e.target, e.source) in pairs
+    assert all(_no_nested_lists(f["properties"]["metadata"]) for f in lines)
     derived = [f for f in lines if f["properties"]["metadata"]["derived"]]
     # 0<->3 exist both ways: 4 real edges without a reverse get a derived one
     assert len(lines) == 5 + 3 and len(derived) == 3
