@@ -166,8 +166,13 @@ def test_topic_list_and_echo_against_live_publishers(
     stop = threading.Event()
     node, thread = _publish_in_background(ros_context, stop)
     try:
-        assert main(["topic", "list", "--wait", "1.0"]) == 0
-        out = capsys.readouterr().out
+        # Discovery between two participants takes 0.02-3 s (periodic announcements under
+        # load): list again until the publishers show up, within a deadline.
+        deadline = time.monotonic() + 20.0
+        out = ""
+        while "/live_odom" not in out and time.monotonic() < deadline:
+            assert main(["topic", "list", "--wait", "0.5"]) == 0
+            out = capsys.readouterr().out
         assert "/live_odom [nav_msgs/msg/Odometry]" in out
         assert "/latched_json [std_msgs/msg/String]" in out
         assert main(["topic", "echo", "/live_odom", "--limit", "2", "--timeout", "20"]) == 0

@@ -18,8 +18,9 @@ from typing import Any
 from island_mapping.bag.errors import BagError
 from island_mapping.cli import CliError
 
-DISCOVERY_WAIT_S = 1.0
-"""Default wait for DDS discovery before listing (two processes on loopback: 0.02-0.25 s)."""
+DISCOVERY_WAIT_S = 2.0
+"""Default wait for DDS discovery before listing (loopback: 0.02-0.25 s, up to ~3 s when the
+first announcements are missed on a loaded machine) [s]."""
 SPIN_STEP_S = 0.05
 
 
