@@ -147,3 +147,26 @@ def test_malformed_records_are_errors_naming_the_line(tmp_path: Path) -> None:
         log.write_text(good + bad + "\n")
         with pytest.raises(GraphFormatError, match=message):
             GraphStore(tmp_path)
+
+
+def test_a_failed_append_is_not_applied_and_leaves_no_partial_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import os
+
+    store = GraphStore(tmp_path)
+    _fill(store, 2)
+    size = (tmp_path / GraphStore.LOG).stat().st_size
+
+    def disk_full(fd: int) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", disk_full)
+    with pytest.raises(OSError, match="No space left"):
+        store.put_island(island(5))
+    monkeypatch.undo()
+    assert 5 not in store.graph
+    assert (tmp_path / GraphStore.LOG).stat().st_size == size
+    store.put_island(island(6))
+    store.close()
+    assert GraphStore.read(tmp_path).island_ids() == [0, 1, 6]

@@ -858,7 +858,7 @@ class GraphStore:
         self._logged = 0  # lines in the current log
         self.dropped_torn_tail = False
         self._lock_fd: int | None = None
-        self._log: IO[str] | None = None
+        self._log: IO[bytes] | None = None
         if read_only:
             if not self.directory.is_dir():
                 raise GraphFormatError(str(self.directory), "no such graph store directory")
@@ -876,7 +876,7 @@ class GraphStore:
             ) from None
         try:
             self._load()
-            self._log = open(self.directory / self.LOG, "a", encoding="utf-8")
+            self._log = open(self.directory / self.LOG, "ab", buffering=0)
         except BaseException:
             self.close()
             raise
@@ -965,10 +965,22 @@ class GraphStore:
         if self._log is None:
             raise GraphError(f"graph store {self.directory} is open read-only")
         record = {"seq": self._seq + 1, **record}
-        self._log.write(json_io.dumps(record) + "\n")
-        self._log.flush()
-        if self.config.fsync:
-            os.fsync(self._log.fileno())
+        line = (json_io.dumps(record) + "\n").encode("utf-8")
+        fd = self._log.fileno()
+        size = os.fstat(fd).st_size
+        try:
+            view = memoryview(line)
+            while view:
+                view = view[os.write(fd, view):]
+            if self.config.fsync:
+                os.fsync(fd)
+        except BaseException:
+            # e.g. disk full: cut a partial line so later appends do not follow garbage
+            try:
+                os.ftruncate(fd, size)
+            except OSError:
+                pass
+            raise
         self._seq += 1
         self._logged += 1
 
@@ -1016,7 +1028,7 @@ class GraphStore:
         json_io.atomic_write_text(self.directory / self.SNAPSHOT, json_io.dumps(doc) + "\n")
         self._log.close()
         json_io.atomic_write_text(self.directory / self.LOG, "")
-        self._log = open(self.directory / self.LOG, "a", encoding="utf-8")
+        self._log = open(self.directory / self.LOG, "ab", buffering=0)
         self._logged = 0
 
     def close(self) -> None:
