@@ -80,3 +80,44 @@ def test_bad_topic_and_path_exit_2(small_bag: Path, capsys: pytest.CaptureFixtur
     assert "no topic /missing" in err and "/odom" in err
     assert main(["bag", "info", str(small_bag.parent / "nothing_here")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_play_subprocess_publishes_with_clock(
+    small_bag: Path, ros_context: object, spin: object
+) -> None:
+    import subprocess
+    import sys
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import LaserScan
+
+    node = rclpy.create_node("play_listener", context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(node)
+    scans: list[int] = []
+    clocks: list[int] = []
+    node.create_subscription(LaserScan, "/sonar/scan",
+                             lambda m: scans.append(m.header.stamp.sec), 50)
+    node.create_subscription(Clock, "/clock", lambda m: clocks.append(m.clock.sec), 50)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from island_mapping.cli import main; sys.exit(main())",
+         "bag", "play", str(small_bag),
+         "--rate", "2", "--delay", "3"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        assert spin(ex, lambda: proc.poll() is not None, 60.0)  # type: ignore[operator]
+        spin(ex, lambda: len(scans) == 5, 2.0)  # type: ignore[operator]
+        out, err = proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        ex.shutdown()
+        node.destroy_node()
+    assert proc.returncode == 0, err
+    assert "published 11 messages" in out
+    # Whatever was received after discovery arrives in recorded order, with /clock.
+    assert scans and scans == sorted(scans) and set(scans) <= {10, 11, 12, 13, 14}
+    assert clocks and clocks == sorted(clocks)

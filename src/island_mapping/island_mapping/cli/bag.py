@@ -2,7 +2,7 @@
 
   islands bag info DIR_OR_FILE
   islands bag echo DIR_OR_FILE --topic T [--limit N] [--max-array N]
-  islands bag play DIR_OR_FILE [--rate R] [--loop] [--topics T ...] [--clock | --no-clock]
+  islands bag play DIR_OR_FILE [--rate R] [--loop] [--topics T ...] [--no-clock] [--delay S]
   islands bag recover BROKEN.mcap [--out FIXED_DIR]
   islands bag import-carmen LOG --out DIR [--beams 16|24]
 """
@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import argparse
+import time
 from pathlib import Path
 
 from island_mapping.bag.errors import BagError
@@ -37,6 +38,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                    help="publish /clock with the bag time (default)")
     p.add_argument("--no-clock", dest="clock", action="store_false",
                    help="replay a recorded /clock as a plain topic instead")
+    p.add_argument("--delay", type=float, default=0.0,
+                   help="wait this long before playing, so subscribers are discovered [s]")
 
     p = sub.add_parser("recover", help="rescue the complete chunks of an interrupted recording")
     p.add_argument("broken", help="the damaged .mcap file (or its directory)")
@@ -115,6 +118,8 @@ def _play(args: argparse.Namespace) -> int:
 
     if not args.rate > 0:
         raise CliError(f"--rate must be positive, got {args.rate}")
+    if args.delay < 0:
+        raise CliError(f"--delay must be >= 0, got {args.delay}")
     reader = open_bag(args.bag)
     ctx = Context()
     rclpy.init(context=ctx)
@@ -124,6 +129,9 @@ def _play(args: argparse.Namespace) -> int:
     try:
         player = BagPlayer(node, reader, rate=args.rate, topics=args.topics,
                            publish_clock=args.clock, loop=args.loop)
+        end = time.monotonic() + args.delay
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
         print(f"playing {reader.message_count} messages of {len(player.topics)} topics, "
               f"{reader.duration_ns / 1e9:.3f} s at rate {args.rate}", flush=True)
         player.play_all(executor)
