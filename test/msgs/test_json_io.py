@@ -143,6 +143,7 @@ def test_save_is_atomic_and_load_names_the_file(tmp_path: Path) -> None:
     json_io.save_graph_json(path, _islands(), _edges())
     assert json_io.load_graph_json(path) == (_islands(), _edges())
     assert sorted(p.name for p in path.parent.iterdir()) == ["graph.json"]  # no temp left
+    assert path.stat().st_mode & 0o777 == 0o644
     bad = _mutated(["islands", 1, "model", "segments", 2, 1], float("nan"))
     path.write_text(json.dumps(bad))
     with pytest.raises(GraphFormatError) as info:

@@ -44,6 +44,7 @@ from island_msgs_py.types import (
 FORMAT_NAME = "islands-graph"
 FORMAT_VERSION = 1
 SUPPORTED_VERSIONS = (1,)  # versions this module can read
+FILE_MODE = 0o644  # permissions of written files (rw owner, readable by all)
 
 _ISLAND_KEYS = {"id", "frame_id", "model_type", "r", "built_at_s", "model", "origin_truth"}
 _ISLAND_REQUIRED = {"id", "model_type", "r", "built_at_s", "model"}
@@ -350,6 +351,7 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
+        os.fchmod(fd, FILE_MODE)  # mkstemp creates 0600; results are meant to be shared
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)
             f.flush()
