@@ -72,7 +72,7 @@ class LocalizeConfig:
         default=Weighting.CAUCHY, metadata={"help": "weights of matched points: uniform|cauchy"}
     )
     weight_scale_m: float = field(
-        default=0.2, metadata={"help": "distance scale of the Cauchy weight [m]"}
+        default=0.05, metadata={"help": "distance scale of the Cauchy weight [m]"}
     )
     estimate_heading: bool = field(
         default=True, metadata={"help": "also correct the heading (the extension) [bool]"}

@@ -358,12 +358,59 @@ def measure_map(
     bounds: tuple[float, float, float, float],
     resolution_m: float,
     config: MeasureConfig | None = None,
+    only_inside: bool = False,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """R(p, eps) on a grid: (xs (nx,), ys (ny,), R (ny, nx)) with cell centres [m];
-    R[j, i] is at (xs[i], ys[j])."""
+    R[j, i] is at (xs[i], ys[j]).
+
+    With `only_inside`, only points inside the walls' closed outlines (`inside_outline`) are
+    computed and the others are NaN (a building's solid parts and its outside cost nothing).
+    """
+    world = as_world(segments)
     xs, ys, pts = grid_points(bounds, resolution_m)
-    res = line_measure(segments, pts, config)
-    return xs, ys, res.r_eps.reshape(ys.shape[0], xs.shape[0])
+    values = np.full(pts.shape[0], np.nan)
+    keep = inside_outline(world, pts) if only_inside else np.ones(pts.shape[0], dtype=bool)
+    if np.any(keep):
+        values[keep] = line_measure(world, pts[keep], config).r_eps
+    return xs, ys, values.reshape(ys.shape[0], xs.shape[0])
+
+
+# Directions [rad] of the parity rays (irrational-ish so that rays through vertices are rare);
+# the majority of the three decides.
+_PARITY_ANGLES_RAD = (0.1234567, 2.2345678, 4.3456789)
+# Distance [m] a parity ray restarts beyond the wall it crossed.
+_PARITY_STEP_M = 1e-7
+# Most walls a parity ray may cross.
+_PARITY_MAX_CROSSINGS = 10_000
+
+
+def inside_outline(segments: npt.ArrayLike | World, points: npt.ArrayLike) -> npt.NDArray[np.bool_]:
+    """(P,) True where a point is inside the closed outlines of the walls (crossing parity).
+
+    For worlds whose walls trace the free space (built-in worlds, HouseExpo and image imports)
+    this is "in free space". Each ray is cast with `World.raycast` repeatedly from just beyond
+    its last hit and the hits are counted; odd = inside. Three directions vote.
+    """
+    world = as_world(segments)
+    pts = as_points(points)
+    votes = np.zeros(pts.shape[0], dtype=np.int64)
+    if world.segments.shape[0] == 0 or pts.shape[0] == 0:
+        return votes > 0
+    for ang in _PARITY_ANGLES_RAD:
+        u = np.array([math.cos(ang), math.sin(ang)])
+        origin = pts.copy()
+        count = np.zeros(pts.shape[0], dtype=np.int64)
+        active = np.arange(pts.shape[0])
+        for _ in range(_PARITY_MAX_CROSSINGS):
+            if active.size == 0:
+                break
+            hits = world.raycast(origin[active], np.full(active.size, ang))
+            hit = hits.segment >= 0
+            active = active[hit]
+            count[active] += 1
+            origin[active] += (hits.distance_m[hit] + _PARITY_STEP_M)[:, None] * u
+        votes += count % 2
+    return votes >= 2
 
 
 def evaluate_models(
