@@ -35,6 +35,9 @@ def test_index_agrees_exactly_with_brute_force(max_range: float) -> None:
     a = rng.uniform(-math.pi, math.pi, 3000)
     o[:50] = [10.0, 5.0]  # rays starting on a wall and along it
     a[:25] = 0.0
+    # Directions on the index's 45 deg sector borders, negative and beyond 2 pi.
+    a[50:250] = np.tile(np.arange(-8, 17) * (math.pi / 4), 8)[:200]
+    o[250:300] = o[250:300].round()  # origins on cell corners
     fast = world.raycast(o, a, max_range)
     slow = raycast(world.segments, o, a, max_range)
     assert np.array_equal(fast.distance_m, slow.distance_m)
@@ -49,9 +52,9 @@ def test_index_agrees_exactly_with_brute_force(max_range: float) -> None:
 
 def test_index_single_origin_broadcast_and_shape_errors() -> None:
     world = _random_world(200, 3)
-    a = np.linspace(-math.pi, math.pi, 90)
+    a = np.linspace(-math.pi, math.pi, 500)
     fast = world.raycast([20.0, 20.0], a)
-    slow = raycast(world.segments, np.tile([20.0, 20.0], (90, 1)), a)
+    slow = raycast(world.segments, np.tile([20.0, 20.0], (500, 1)), a)
     assert np.array_equal(fast.distance_m, slow.distance_m)
     with pytest.raises(WorldError, match="origins"):
         world.raycast(np.zeros((3, 2)), np.zeros(5))
@@ -238,11 +241,16 @@ def test_map_server_yaml(tmp_path: Path) -> None:
 
 def test_index_far_origins_fall_back_to_brute_force() -> None:
     world = _random_world(300, 4)
-    o = np.array([[1e12, 20.0], [-1e12, 20.0], [20.0, 20.0]])
-    a = np.array([math.pi, 0.0, 1.0])
+    rng = np.random.default_rng(9)
+    o = rng.uniform(0, 40, (300, 2))
+    a = rng.uniform(-math.pi, math.pi, 300)
+    o[:150:2] = [1e12, 20.0]  # far east, looking west: hits the world
+    o[1:150:2] = [-1e12, 20.0]
+    a[:150:2], a[1:150:2] = math.pi, 0.0
     fast = world.raycast(o, a)
     slow = raycast(world.segments, o, a)
     assert np.array_equal(fast.distance_m, slow.distance_m)
-    only_far = world.raycast(o[:2], a[:2])
-    assert np.array_equal(only_far.segment, slow.segment[:2])
+    assert np.isfinite(slow.distance_m[:150]).any()
+    only_far = world.raycast(o[:150], a[:150])
+    assert np.array_equal(only_far.segment, slow.segment[:150])
     assert world.raycast(np.zeros((0, 2)), np.zeros(0)).distance_m.shape == (0,)

@@ -115,7 +115,8 @@ def raycast(
 ) -> RayHits:
     """Cast M rays from `origins` (M, 2) [m] along `angles_rad` (M,) against `segments` (N, 4).
 
-    Brute force over all segments, vectorized in chunks of rays. Returns the first hit per ray.
+    Brute force over all segments, vectorized in chunks of at most `chunk` rays (fewer when
+    there are many segments, to bound memory). Returns the first hit per ray.
     """
     o, a = _prepare_rays(origins, angles_rad)
     m = a.shape[0]
@@ -125,6 +126,7 @@ def raycast(
         return RayHits(dist, seg, np.zeros(m), np.zeros(m))
     p = segments[:, 0:2]
     e = segments[:, 2:4] - p  # (N, 2) segment direction
+    chunk = max(1, min(chunk, _MAX_PAIRS // segments.shape[0]))  # bounded temporaries
     for s in range(0, m, chunk):
         tj, j = _nearest_hits(p, e, o[s : s + chunk], a[s : s + chunk])
         hit = np.isfinite(tj) & (tj <= max_range_m)
@@ -135,12 +137,16 @@ def raycast(
 
 # Below this many segments the index is not worth its bookkeeping: brute force.
 _INDEX_MIN_SEGMENTS = 64
+# Calls with at most this many rays x segments go to brute force.
+_BRUTE_MAX_PAIRS = 1 << 15
 # Slack added to query boxes so float round-off in hit distances never drops a candidate [m].
 _BOX_MARGIN_M = 1e-6
 # Largest rays x candidate-segments product evaluated at once (bounds temporary memory).
 _MAX_PAIRS = 1 << 21
 # Origin cell indices beyond this are not indexed (such rays go to brute force).
-_MAX_CELL = 1 << 30
+_MAX_CELL = 1 << 26
+# Ray directions are split into this many equal sectors, each with its own candidate list.
+_SECTORS = 8
 # Rays whose candidates exceed 1 / this of all segments test all segments (no gather).
 _DENSE_FRACTION_INV = 2
 # Calls with at most this many rays skip the per-count bucketing.
@@ -150,15 +156,17 @@ _MAX_CACHED_RADII = 8
 
 
 class SegmentIndex:
-    """Spatial index for ray casting: a uniform grid of ray-origin cells with candidate lists.
+    """Spatial index for ray casting: ray-origin cells x direction sectors, with candidate lists.
 
-    For a search radius r, the grid has cells of size r / 4; a cell's candidates are the segments
-    whose bounding boxes overlap the cell grown by r (computed on first use and cached). A ray
-    tests only its origin cell's candidates. A hit found at a distance <= r is exact (any nearer
-    hit point lies in the grown cell, so its segment was tested); rays without such a hit are
-    retried with a 3x larger radius, until the candidates are all segments or r reaches the
-    maximum range. The answer equals brute-force `raycast` bit for bit, including ties (the
-    lowest segment index wins). All rays of a pass are evaluated in vectorized chunks.
+    For a search radius r, origins are binned in square cells of size r / 4 and directions in 8
+    sectors of 45 deg. The candidates of a (cell, sector) bin are the segments whose bounding
+    boxes overlap the region that rays from the cell, in the sector, sweep within distance r
+    (a box: the cell grown by the sector's bounding box; computed on first use and cached). A
+    hit found at a distance <= r is exact: any nearer hit point lies in that region, so its
+    segment was tested. Rays without such a hit are retried with a 3x larger radius until r
+    reaches the maximum range or the farthest corner of the world. The answer equals
+    brute-force `raycast` bit for bit, including ties (the lowest segment index wins). All rays
+    of a pass are evaluated in vectorized chunks.
     """
 
     def __init__(self, segments: FloatArray) -> None:
@@ -171,9 +179,10 @@ class SegmentIndex:
         self._hi = np.maximum(self.segments[:, 0:2], self.segments[:, 2:4])
         if n:
             self._world_lo = self._lo.min(axis=0)
-            diag = float(np.linalg.norm(self._hi.max(axis=0) - self._world_lo))
+            self._world_hi = self._hi.max(axis=0)
+            diag = float(np.linalg.norm(self._world_hi - self._world_lo))
         else:
-            self._world_lo = np.zeros(2)
+            self._world_lo = self._world_hi = np.zeros(2)
             diag = 0.0
         # First search radius for unlimited rays: a tenth of the world, at least 4 m.
         self.base_radius_m = max(4.0, 0.1 * diag)
@@ -192,17 +201,32 @@ class SegmentIndex:
             return raycast(self.segments, origins, angles_rad, max_range_m)
         o, a = _prepare_rays(origins, angles_rad)
         m = a.shape[0]
+        if m * n <= _BRUTE_MAX_PAIRS:  # a small job: the bookkeeping would cost more
+            return raycast(self.segments, o, a, max_range_m)
         dist = np.full(m, np.inf)
         seg = np.full(m, -1, dtype=np.int64)
-        if m == 0 or not max_range_m > 0:
+        if not max_range_m > 0:
             return _finish_hits(self.segments, a, dist, seg)
         u = np.stack([np.cos(a), np.sin(a)], axis=1)
+        sector = np.minimum(
+            np.floor(np.mod(a, 2.0 * np.pi) / (2.0 * np.pi / _SECTORS)), _SECTORS - 1
+        ).astype(np.int64)
+        # Beyond this distance a ray has left the world's bounding box: nothing more to hit [m].
+        corners = np.array(
+            [
+                [self._world_lo[0], self._world_lo[1]],
+                [self._world_lo[0], self._world_hi[1]],
+                [self._world_hi[0], self._world_lo[1]],
+                [self._world_hi[0], self._world_hi[1]],
+            ]
+        )
+        exit_m = np.sqrt(((o[:, None, :] - corners[None, :, :]) ** 2).sum(axis=2)).max(axis=1)
         pending = np.arange(m)
         r = min(float(max_range_m), self.base_radius_m)
         while pending.size:
             cell = r / 4.0
             cij_f = np.floor((o[pending] - self._world_lo) / cell)
-            far = np.any(np.abs(cij_f) > _MAX_CELL, axis=1)
+            far = np.any(np.abs(cij_f) >= _MAX_CELL, axis=1)
             if np.any(far):  # absurdly distant origins: brute force
                 fr = pending[far]
                 hits = raycast(self.segments, o[fr], a[fr], max_range_m)
@@ -211,12 +235,12 @@ class SegmentIndex:
                 if pending.size == 0:
                     break
             cij = cij_f.astype(np.int64) + _MAX_CELL
-            keys = cij[:, 0] * (2 * _MAX_CELL + 1) + cij[:, 1]
+            keys = (cij[:, 0] * (2 * _MAX_CELL) + cij[:, 1]) * _SECTORS + sector[pending]
             ukeys, inv = np.unique(keys, return_inverse=True)
             lists = self._candidates(r, ukeys)
             counts = np.array([c.size for c in lists], dtype=np.int64)
             ray_counts = counts[inv]
-            final = (ray_counts == n) | (r >= max_range_m)
+            final = (r >= exit_m[pending]) | (r >= max_range_m)
             t = np.empty(pending.size)
             jg = np.empty(pending.size, dtype=np.int64)
             # Buckets of rays with similar candidate counts (padding wastes at most 2x); rays
@@ -286,19 +310,41 @@ class SegmentIndex:
         missing = np.array([k for k in keys.tolist() if k not in cache], dtype=np.int64)
         if missing.size:
             cell = r / 4.0
-            span = 2 * _MAX_CELL + 1
-            cij = np.stack([missing // span, missing % span], axis=1) - _MAX_CELL
-            lo = self._world_lo + cij * cell - (r + _BOX_MARGIN_M)
-            hi = self._world_lo + (cij + 1) * cell + (r + _BOX_MARGIN_M)
+            span = 2 * _MAX_CELL
+            sec = missing % _SECTORS
+            flat = missing // _SECTORS
+            cij = np.stack([flat // span, flat % span], axis=1) - _MAX_CELL
+            sec_lo, sec_hi = _sector_boxes(r)
+            lo = self._world_lo + cij * cell + sec_lo[sec] - _BOX_MARGIN_M
+            hi = self._world_lo + (cij + 1) * cell + sec_hi[sec] + _BOX_MARGIN_M
             n = len(self)
             step = max(1, _MAX_PAIRS // n)
             for s in range(0, missing.size, step):
-                overlap = np.all(
-                    self._hi[None, :, :] >= lo[s : s + step, None, :], axis=2
-                ) & np.all(self._lo[None, :, :] <= hi[s : s + step, None, :], axis=2)
+                qlo, qhi = lo[s : s + step], hi[s : s + step]
+                overlap = self._hi[None, :, 0] >= qlo[:, 0:1]
+                overlap &= self._hi[None, :, 1] >= qlo[:, 1:2]
+                overlap &= self._lo[None, :, 0] <= qhi[:, 0:1]
+                overlap &= self._lo[None, :, 1] <= qhi[:, 1:2]
                 for k, row in zip(missing[s : s + step].tolist(), overlap, strict=True):
                     cache[k] = np.flatnonzero(row).astype(np.int64)
         return [cache[k] for k in keys.tolist()]
+
+
+def _sector_boxes(r: float) -> tuple[FloatArray, FloatArray]:
+    """(S, 2) low and high corners [m] of the boxes around the circular sectors of radius r.
+
+    Sector k holds directions [k, k + 1) * 2 pi / S; its box holds the apex, the two arc ends and
+    the arc's axis-aligned extreme points inside the sector.
+    """
+    lo = np.zeros((_SECTORS, 2))
+    hi = np.zeros((_SECTORS, 2))
+    width = 2.0 * math.pi / _SECTORS
+    for k in range(_SECTORS):
+        a0, a1 = k * width, (k + 1) * width
+        angles = [a0, a1] + [q * math.pi / 2 for q in range(5) if a0 < q * math.pi / 2 < a1]
+        pts = np.array([[0.0, 0.0]] + [[r * math.cos(t), r * math.sin(t)] for t in angles])
+        lo[k], hi[k] = pts.min(axis=0), pts.max(axis=0)
+    return lo, hi
 
 
 def _hit_distances(
