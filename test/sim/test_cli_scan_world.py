@@ -40,6 +40,8 @@ def test_scan_noise_is_seeded(capsys: pytest.CaptureFixture[str]) -> None:
     assert a == b and a["ranges"] != c["ranges"]
     d = _run(capsys, "scan", "--world", "square_room")[1]  # default: the start pose
     assert d["pose"] == [5.0, 5.0, 0.0]
+    e = _run(capsys, "scan", "--world", "square_room", "--pose=-1,2,-0.5")[1]
+    assert e["pose"] == [-1.0, 2.0, -0.5]
 
 
 def test_scan_world_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -5,7 +5,8 @@
 WORLD is a built-in name (paper_fig3, paper_fig4, corridor, square_room, t_junction) or a world
 file (YAML/JSON segments, HouseExpo JSON, PGM/PNG occupancy image). Prints
 {"angles": [...] (rad, robot frame), "ranges": [...] (m from the robot centre, null = no echo),
-"pose": [x, y, theta], "world": name}. Without --pose the world's start pose is used.
+"pose": [x, y, theta], "world": name}. Without --pose the world's start pose is used; a pose
+starting with a minus sign needs the `=` form: --pose=-1.5,2,0.
 """
 
 from __future__ import annotations
@@ -22,7 +23,10 @@ from island_mapping.cli import CliError
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--world", required=True, help="built-in world name or world file")
     parser.add_argument(
-        "--pose", default=None, help="robot pose X,Y,THETA (m, m, rad); default: the start pose"
+        "--pose",
+        default=None,
+        help="robot pose X,Y,THETA (m, m, rad; write --pose=-1,2,0 for a negative X); "
+        "default: the world's start pose",
     )
     parser.add_argument(
         "--ideal", action="store_true", help="one ray per transducer, no noise, no specular loss"
