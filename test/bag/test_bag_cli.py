@@ -104,7 +104,7 @@ def test_play_subprocess_publishes_with_clock(
     proc = subprocess.Popen(
         [sys.executable, "-c", "import sys; from island_mapping.cli import main; sys.exit(main())",
          "bag", "play", str(small_bag),
-         "--rate", "2", "--delay", "3"],
+         "--rate", "4", "--delay", "2"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
     try:

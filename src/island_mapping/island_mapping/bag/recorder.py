@@ -191,7 +191,7 @@ class RunRecorder:
                 log_time = None
                 if self.writer.latest_clock_ns is None:
                     rec = self.writer.topics[topic]
-                    if not rec.stamp_first or stamp_ns_from_cdr(data) is None:
+                    if not rec.stamp_first:
                         log_time = self.node.get_clock().now().nanoseconds
                 self.writer.write_raw(topic, data, log_time)
                 self.received += 1

@@ -169,14 +169,16 @@ def stamp_is_first_field(type_name: str) -> bool:
 
 
 def stamp_ns_from_cdr(data: bytes) -> int | None:
-    """Nanoseconds of the leading Time of a CDR payload (see stamp_is_first_field), None if 0."""
+    """Nanoseconds of the leading Time of a CDR payload (see stamp_is_first_field).
+
+    None when the payload is too short to hold one. 0 is returned as 0: it is both "never set"
+    and the first instant of sim time, and only the caller knows which.
+    """
     if len(data) < 12:
         return None
     order: Literal["little", "big"] = "little" if data[1] in (0x01, 0x03) else "big"
     sec = int.from_bytes(data[4:8], order, signed=True)
     nsec = int.from_bytes(data[8:12], order, signed=False)
-    if sec == 0 and nsec == 0:
-        return None
     return sec * 1_000_000_000 + nsec
 
 

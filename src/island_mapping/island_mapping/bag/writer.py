@@ -3,7 +3,8 @@
 MCAP profile `ros2`, schemas `ros2msg` (schema.py), channels `cdr` with rosbag2's channel metadata
 (`offered_qos_profiles` YAML text, `topic_type_hash`), chunked with zstd/lz4/no compression.
 log_time = publish_time = the message's sim-time stamp in ns: the leading header stamp (or the
-Clock's time) when the type starts with one and it is non-zero, else the latest /clock time seen.
+Clock's time) when the type starts with one (a zero stamp counts only while the clock is at 0),
+else the latest /clock time seen.
 
 Crash safety: every finished chunk goes straight to the operating system (no Python-side
 buffering), and a chunk is finished once it holds `chunk_size_bytes` or spans
@@ -322,7 +323,8 @@ class BagWriter:
         if topic == CLOCK_TOPIC and stamp is not None:
             self._latest_clock_ns = stamp
         if log_time_ns is None:
-            if stamp is not None:
+            # A zero stamp is "unset" once the clock has moved on, but real at sim time 0.
+            if stamp is not None and (stamp != 0 or not self._latest_clock_ns):
                 log_time_ns = stamp
             elif self._latest_clock_ns is not None:
                 log_time_ns = self._latest_clock_ns
