@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import struct
 import zlib
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -404,21 +404,18 @@ def _point_segment_distance(p: FloatArray, a: FloatArray, b: FloatArray) -> Floa
 
 
 def start_pose_from_clearance(
-    world_segments: FloatArray,
-    candidates_m: FloatArray,
-    clearance_m: FloatArray,
-    raycast: Callable[[FloatArray, FloatArray], FloatArray],
+    world: World, candidates_m: FloatArray, clearance_m: FloatArray
 ) -> Pose2D:
     """The candidate point with the largest clearance, facing its longest free ray.
 
-    candidates_m: (K, 2) points [m]; clearance_m: (K,) [m]; raycast(origins, angles) -> ranges.
+    candidates_m: (K, 2) points [m]; clearance_m: (K,) distance to the nearest wall [m].
     """
     if candidates_m.shape[0] == 0:
-        raise WorldError("cannot choose a start pose: no free space found")
+        raise WorldError(f"world {world.name!r}: cannot choose a start pose, no free space")
     best = int(np.argmax(clearance_m))
     x, y = (float(v) for v in candidates_m[best])
     bearings = np.linspace(-math.pi, math.pi, _START_BEARINGS, endpoint=False)
-    ranges = raycast(np.array([[x, y]]), bearings)
+    ranges = world.raycast(np.array([[x, y]]), bearings).distance_m
     ranges = np.where(np.isfinite(ranges), ranges, -1.0)
     return Pose2D(x, y, float(bearings[int(np.argmax(ranges))]))
 
@@ -442,10 +439,7 @@ def enclosed_start_pose(world: World, step_m: float = 0.25) -> Pose2D:
         enclosed[:] = True
     pts = pts[enclosed]
     clearance = _clearance(pts, world.segments)
-    return start_pose_from_clearance(
-        world.segments, pts, clearance,
-        lambda o, a: world.raycast(o, a).distance_m,
-    )
+    return start_pose_from_clearance(world, pts, clearance)
 
 
 def _clearance(pts: FloatArray, segs: FloatArray) -> FloatArray:
@@ -494,10 +488,7 @@ def import_image(path: str | Path, config: ImageImportConfig | None = None) -> W
         [origin[0] + (ix + 0.5) * cfg.resolution_m, origin[1] + (iy + 0.5) * cfg.resolution_m],
         axis=1,
     )
-    start = start_pose_from_clearance(
-        segs, centres, clearance_px[iy, ix] * cfg.resolution_m,
-        lambda o, a: world.raycast(o, a).distance_m,
-    )
+    start = start_pose_from_clearance(world, centres, clearance_px[iy, ix] * cfg.resolution_m)
     return World(world.segments, name=p.stem, start_pose=start)
 
 
@@ -525,9 +516,7 @@ def import_houseexpo(path: str | Path, data: dict[str, Any] | None = None) -> Wo
     pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
     inside = _inside_polygon(pts, verts)
     pts = pts[inside]
-    start = start_pose_from_clearance(
-        segs, pts, _clearance(pts, segs), lambda o, a: world.raycast(o, a).distance_m
-    )
+    start = start_pose_from_clearance(world, pts, _clearance(pts, segs))
     return World(world.segments, name=name, start_pose=start)
 
 
