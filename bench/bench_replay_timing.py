@@ -90,9 +90,9 @@ def measure(bag: Path, rate: float) -> None:
             message_class(reader.topics[name].type_name), name,
             lambda m: arrivals.append((time.monotonic(), stamp_of(m))), QoSProfile(depth=1000))
     deadline = time.monotonic() + 10
-    while time.monotonic() < deadline and any(
-        p.get_subscription_count() == 0 for p in player._publishers.values()
-    ):
+    while time.monotonic() < deadline and min(
+        player.subscriber_counts().values(), default=1
+    ) == 0:
         ex.spin_once(timeout_sec=0.05)
     start = time.monotonic()
     player.play_all(ex)

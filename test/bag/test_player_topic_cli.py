@@ -82,7 +82,7 @@ def test_step_until_publishes_exactly_the_due_messages(player_setup: Any,
     scans, clocks = _listen(listen)
     player = BagPlayer(play_node, open_bag(bag), rate=1.0)
     assert "/clock" not in player.topics  # the player owns /clock
-    assert spin(ex, lambda: player._publishers["/sonar/scan"].get_subscription_count() > 0, 10)
+    assert spin(ex, lambda: player.subscriber_counts()["/sonar/scan"] > 0, 10)
     n = player.step_until(T0_NS + 9 * PERIOD_NS)
     assert n == 10 + 1  # ten scans and the latched graph message
     assert spin(ex, lambda: len(scans) == 10, 10.0)
@@ -104,7 +104,7 @@ def test_timed_playback_keeps_recorded_spacing(player_setup: Any,
     bag, play_node, listen, ex = player_setup
     scans, _ = _listen(listen)
     player = BagPlayer(play_node, open_bag(bag), rate=1.0, topics=["/sonar/scan"])
-    assert spin(ex, lambda: player._publishers["/sonar/scan"].get_subscription_count() > 0, 10)
+    assert spin(ex, lambda: player.subscriber_counts()["/sonar/scan"] > 0, 10)
     start = time.monotonic()
     player.play_all(ex)
     assert spin(ex, lambda: len(scans) == N_SCANS, 10.0)

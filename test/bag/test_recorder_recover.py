@@ -33,12 +33,15 @@ def test_run_recorder_records_latched_typed_and_stampless_topics(
     from island_mapping.bag.recorder import RecorderConfig, RunRecorder
     from nav_msgs.msg import Odometry
     from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock
     from std_msgs.msg import String
 
     pub_node = rclpy.create_node("pubs", context=ros_context)
-    rec_node = rclpy.create_node("rec", context=ros_context)
+    # On sim time, with no /clock yet: the recorder's rescan timer runs on the steady clock.
+    rec_node = rclpy.create_node("rec", context=ros_context,
+                                 parameter_overrides=[Parameter("use_sim_time", value=True)])
     ex = SingleThreadedExecutor(context=ros_context)
     ex.add_node(pub_node)
     ex.add_node(rec_node)
@@ -51,9 +54,11 @@ def test_run_recorder_records_latched_typed_and_stampless_topics(
     graph_pub.publish(String(data='{"islands": []}'))  # before the recorder exists: latched
     recorder = RunRecorder(rec_node, tmp_path / "run",
                            config=RecorderConfig(rescan_period_s=0.1, flush_period_s=0.1))
+    pub_node.create_publisher(String, "/late", 10)  # created after the recorder first scanned
     try:
-        assert spin(ex, lambda: len(recorder.recorded_topics) >= 4, 10.0), \
+        assert spin(ex, lambda: len(recorder.recorded_topics) >= 5, 10.0), \
             recorder.recorded_topics
+        assert "/late" in recorder.recorded_topics
         assert spin(ex, lambda: min(recorder.matched_publishers().values()) > 0, 10.0)
         for i in range(N_MSGS):
             clock = Clock()

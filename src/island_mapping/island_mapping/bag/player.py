@@ -81,6 +81,14 @@ class BagPlayer:
         """Per batch in timed playback: publish wall time minus target wall time [s]."""
         self._restart()
 
+    def subscriber_counts(self) -> dict[str, int]:
+        """Per replayed topic, how many subscriptions its publisher has matched.
+
+        Volatile messages published before a subscriber is matched are lost: deterministic
+        replays wait until the topics they need show a count > 0 before stepping.
+        """
+        return {t: p.get_subscription_count() for t, p in self._publishers.items()}
+
     # -- iteration ------------------------------------------------------------------------------
     def _restart(self) -> None:
         self._it: Iterator[BagMessage] = (

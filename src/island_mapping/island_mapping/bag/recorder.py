@@ -17,6 +17,7 @@ the open chunk every `flush_period_s` so a killed recorder loses at most that mu
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -94,7 +95,7 @@ class RunRecorder:
     ) -> None:
         cfg = config or RecorderConfig()
         if topics is not None:
-            cfg = RecorderConfig(**{**cfg.__dict__, "topics": tuple(topics)})
+            cfg = dataclasses.replace(cfg, topics=tuple(topics))
         self.config = cfg
         self.node = node
         self.writer = BagWriter(

@@ -53,6 +53,8 @@ class McapScan:
     schemas: dict[int, Schema] = field(default_factory=dict)
     channels: dict[int, Channel] = field(default_factory=dict)
     messages: list[Message] = field(default_factory=list)
+    message_offsets: list[int] = field(default_factory=list)
+    """File offset of the record (message or chunk) holding each message [bytes]."""
     damages: list[Damage] = field(default_factory=list)
     complete: bool = False
     """True when the data section ended properly (DataEnd or Footer record found)."""
@@ -74,9 +76,7 @@ class McapScan:
         return None
 
     def _before(self, offset: int) -> int:
-        return sum(1 for m in self._offsets if m < offset)
-
-    _offsets: list[int] = field(default_factory=list, repr=False)
+        return sum(1 for m in self.message_offsets if m < offset)
 
 
 def _opcode_name(op: int) -> str:
@@ -146,7 +146,7 @@ def _scan_records(buf: mmap.mmap, size: int, scan: McapScan) -> None:
                 scan.channels[c.id] = c
             elif op == Opcode.MESSAGE:
                 scan.messages.append(Message.read(stream, length))
-                scan._offsets.append(pos)
+                scan.message_offsets.append(pos)
             elif op == Opcode.CHUNK:
                 _scan_chunk(Chunk.read(stream), pos, scan)
             elif op in (Opcode.DATA_END, Opcode.FOOTER):
@@ -175,7 +175,7 @@ def _scan_chunk(chunk: Chunk, pos: int, scan: McapScan) -> None:
             scan.channels[rec.id] = rec
         elif isinstance(rec, Message):
             scan.messages.append(rec)
-            scan._offsets.append(pos)
+            scan.message_offsets.append(pos)
 
 
 def find_mcap_files(path: str | os.PathLike[str]) -> list[Path]:
