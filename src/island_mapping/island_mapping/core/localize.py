@@ -27,12 +27,14 @@ vanished. Non-convergence is also reported when `max_iterations` run out or fewe
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
 from island_msgs_py.types import FloatArray, LineModel, Pose2D, as_segments, wrap_angle
+from island_sim.core.world import raycast
 
 
 class LocalizeError(ValueError):
@@ -194,12 +196,93 @@ def localize(
     cfg = config if config is not None else LocalizeConfig()
     seg = _model_segments(model)
     pts = _clean_points(points_robot)
-    pose = initial.as_array()
     if seg.shape[0] == 0 or pts.shape[0] < cfg.min_points:
         return LocalizationResult(initial, math.inf, 0, False, 0.0, 0.0)
+    reach = float(np.max(np.hypot(pts[:, 0], pts[:, 1])))
+    return _iterate(seg, lambda pose: _transform(pts, pose), reach, initial, cfg)
+
+
+@dataclass(frozen=True, eq=False)
+class SonarBeams:
+    """Geometry of a sonar ring reading, for `localize_sonar` (e.g. from island_sim's SonarModel).
+
+    axis_rad: (B,) beam axis bearings in the robot frame [rad]; cone_offsets_rad: (C,) ray
+    directions within a cone relative to its axis [rad]; ring_radius_m: transducer distance from
+    the robot centre [m]; reflect_deg: largest incidence angle giving an echo [deg];
+    range_min_m / range_max_m: echo limits from the transducer [m].
+    """
+
+    axis_rad: FloatArray
+    cone_offsets_rad: FloatArray
+    ring_radius_m: float = 0.225
+    reflect_deg: float = 30.0
+    range_min_m: float = 0.15
+    range_max_m: float = 6.5
+
+
+def localize_sonar(
+    model: LineModel | npt.ArrayLike,
+    ranges_m: npt.ArrayLike,
+    beams: SonarBeams,
+    initial: Pose2D,
+    config: LocalizeConfig | None = None,
+) -> LocalizationResult:
+    """Like `localize`, for wide-cone sonar ranges (B,) from the robot centre [m] (inf = none).
+
+    A sonar reports the nearest echo anywhere in its cone, not along its axis; putting the point
+    on the axis displaces it off the wall by up to tens of centimetres. Each iteration therefore
+    places reading b where the MODEL, seen from the current pose, would have echoed: along the
+    cone ray with the nearest valid hit (incidence within reflect_deg, within the range limits;
+    the axis when no ray echoes), at the measured range from the transducer. The correction
+    step, weights and convergence test are those of `localize`.
+    """
+    cfg = config if config is not None else LocalizeConfig()
+    seg = _model_segments(model)
+    r = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
+    axis = np.asarray(beams.axis_rad, dtype=np.float64).reshape(-1)
+    offs = np.asarray(beams.cone_offsets_rad, dtype=np.float64).reshape(-1)
+    if r.shape != axis.shape:
+        raise LocalizeError(f"localize_sonar: {r.shape[0]} ranges for {axis.shape[0]} beams")
+    if offs.size == 0:
+        offs = np.zeros(1)
+    ok = np.isfinite(r)
+    r, axis = r[ok], axis[ok]
+    if seg.shape[0] == 0 or r.shape[0] < cfg.min_points:
+        return LocalizationResult(initial, math.inf, 0, False, 0.0, 0.0)
+    echo = r - beams.ring_radius_m  # distance from the transducer [m]
+    cos_min = math.cos(math.radians(beams.reflect_deg)) - 1e-12
+    n_b, n_c = axis.shape[0], offs.shape[0]
+
+    def place(pose: FloatArray) -> FloatArray:
+        bearing = pose[2] + axis
+        tx = pose[0] + beams.ring_radius_m * np.cos(bearing)
+        ty = pose[1] + beams.ring_radius_m * np.sin(bearing)
+        ray = (bearing[:, None] + offs[None, :]).reshape(-1)
+        hits = raycast(seg, np.stack([np.repeat(tx, n_c), np.repeat(ty, n_c)], axis=1), ray,
+                       beams.range_max_m)
+        d = hits.distance_m.reshape(n_b, n_c)
+        valid = (hits.cos_incidence.reshape(n_b, n_c) >= cos_min) & (d >= beams.range_min_m)
+        d = np.where(valid, d, np.inf)
+        best = np.argmin(d, axis=1)
+        chosen = np.where(np.isfinite(d[np.arange(n_b), best]), offs[best], 0.0)
+        phi = bearing + chosen
+        return np.stack([tx + echo * np.cos(phi), ty + echo * np.sin(phi)], axis=1)
+
+    reach = float(np.max(r))
+    return _iterate(seg, place, reach, initial, cfg)
+
+
+def _iterate(
+    seg: FloatArray,
+    place: Callable[[FloatArray], FloatArray],
+    reach_m: float,
+    initial: Pose2D,
+    cfg: LocalizeConfig,
+) -> LocalizationResult:
+    """The correction loop; `place(pose)` gives the data points (N, 2) in the model frame."""
+    pose = initial.as_array()
     # Only segments that a matched point could reach matter.
-    reach = float(np.max(np.hypot(pts[:, 0], pts[:, 1]))) + cfg.max_match_dist_m + 1.0
-    near = _segment_distance_to(pose[0:2], seg) <= reach
+    near = _segment_distance_to(pose[0:2], seg) <= reach_m + cfg.max_match_dist_m + 1.0
     seg = seg[near] if np.any(near) else seg
     seg_len = np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
     seg_normal = np.stack([-(seg[:, 3] - seg[:, 1]), seg[:, 2] - seg[:, 0]], axis=1)
@@ -208,7 +291,7 @@ def localize(
     iterations = 0
     steps_small = False
     for iterations in range(1, cfg.max_iterations + 1):  # noqa: B007 (used after the loop)
-        world = _transform(pts, pose)
+        world = place(pose)
         idx, foot, dist = closest_on_segments(world, seg)
         ok = dist <= cfg.max_match_dist_m
         if int(ok.sum()) < cfg.min_points:
@@ -242,7 +325,7 @@ def localize(
             break
 
     pose[2] = wrap_angle(float(pose[2]))
-    world = _transform(pts, pose)
+    world = place(pose)
     idx, foot, dist = closest_on_segments(world, seg)
     ok = dist <= cfg.max_match_dist_m
     matched = float(ok.mean())

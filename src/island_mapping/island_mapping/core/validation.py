@@ -7,7 +7,8 @@ Confidence map (as the paper, with several trials per point):
 - at each point, `trials` times: a seeded random heading, a sonar scan (island_sim SonarModel,
   `scans_per_trial` scans with the ring turned in place by 360 / (N * scans) deg between them so
   the beams interleave), a start pose offset by a random 10-15 cm in a random direction,
-  `localize` against the WORLD segments from there; error = distance [m] from the estimate to
+  `localize_sonar` (the cone-aware variant; `localize` on axis points with sonar_aware=False)
+  against the WORLD segments from there; error = distance [m] from the estimate to
   the true position (an estimate that `localize` itself reports as not converged counts as a
   failure, error = c, when `unconverged_is_failure`);
 - confidence = c - error (paper) normalized to [0, 1]: conf = (c - min(error, c)) / c with
@@ -41,7 +42,7 @@ from scipy.optimize import minimize
 from scipy.stats import rankdata, spearmanr
 
 from island_mapping.core.fisher import FisherConfig, information_matrices, score_information
-from island_mapping.core.localize import LocalizeConfig, localize
+from island_mapping.core.localize import LocalizeConfig, SonarBeams, localize, localize_sonar
 from island_mapping.core.measure import (
     MeasureConfig,
     RayBundle,
@@ -90,6 +91,11 @@ class ValidationConfig:
     confidence_c_m: float = field(
         default=0.15,
         metadata={"help": "the constant c of confidence = c - error; errors >= c score 0 [m]"},
+    )
+    sonar_aware: bool = field(
+        default=True,
+        metadata={"help": "localize with the sonar cone model (localize_sonar) instead of "
+                  "points on the beam axes (localize) [bool]"},
     )
     unconverged_is_failure: bool = field(
         default=True,
@@ -207,19 +213,32 @@ def confidence_map(
     ranges = sonar.scan_many(world, poses.reshape(-1, 3), rng).reshape(m, t, s, -1)
     off_r = rng.uniform(cfg.offset_min_m, cfg.offset_max_m, (m, t))
     off_a = rng.uniform(-math.pi, math.pi, (m, t))
+    beams = SonarBeams(
+        axis_rad=(sonar.angles_rad[None, :] + turn[:, None]).reshape(-1),
+        cone_offsets_rad=sonar.ray_offsets_rad,
+        ring_radius_m=cfg.sonar.ring_radius_m,
+        reflect_deg=cfg.sonar.reflect_deg if not cfg.sonar.ideal else 90.0,
+        range_min_m=cfg.sonar.range_min_m,
+        range_max_m=cfg.sonar.range_max_m,
+    )
     errors = np.empty((m, t))
     conv = np.zeros((m, t), dtype=bool)
     for i in range(m):
         for j in range(t):
-            pts_robot = np.concatenate(
-                [ranges_to_points(ranges[i, j, k], sonar.angles_rad + turn[k]) for k in range(s)]
-            )
             start = Pose2D(
                 float(points[i, 0] + off_r[i, j] * math.cos(off_a[i, j])),
                 float(points[i, 1] + off_r[i, j] * math.sin(off_a[i, j])),
                 float(heading[i, j]),
             )
-            res = localize(world.segments, pts_robot, start, cfg.localize)
+            if cfg.sonar_aware:
+                res = localize_sonar(world.segments, ranges[i, j].reshape(-1), beams, start,
+                                     cfg.localize)
+            else:
+                pts_robot = np.concatenate([
+                    ranges_to_points(ranges[i, j, k], sonar.angles_rad + turn[k])
+                    for k in range(s)
+                ])
+                res = localize(world.segments, pts_robot, start, cfg.localize)
             err = math.hypot(res.pose.x - points[i, 0], res.pose.y - points[i, 1])
             conv[i, j] = res.converged
             if cfg.unconverged_is_failure and not res.converged:
