@@ -12,7 +12,7 @@ import numpy as np
 import numpy.typing as npt
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Twist
-from island_msgs_py.conversions import quaternion_to_yaw, yaw_to_quaternion
+from island_msgs_py.conversions import quaternion_to_yaw
 from island_msgs_py.types import FloatArray, IslandTypeError, Pose2D
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
@@ -20,6 +20,7 @@ from sensor_msgs.msg import LaserScan, Range
 
 NS_PER_S = 1_000_000_000
 _COV_INDEX = (0, 1, 5)  # x, y, yaw rows/cols of ROS's 6x6 pose covariance
+_COV_ROWS, _COV_COLS = np.ix_(_COV_INDEX, _COV_INDEX)
 # Evenly spaced bearings may differ from a perfect grid by this much (float32 fields) [rad].
 _ANGLE_GRID_TOL_RAD = 1e-4
 
@@ -124,20 +125,36 @@ def pose_to_odometry(
     twist: tuple[float, float] = (0.0, 0.0),
 ) -> Odometry:
     """Odometry with the pose, its 3x3 (x, y, theta) covariance in the 6x6, and (v, w) twist."""
-    msg = Odometry()
-    msg.header.stamp = ns_to_time(t_ns)
+    return fill_odometry(Odometry(), pose, cov, t_ns, frame_id, child_frame_id, twist)
+
+
+def fill_odometry(
+    msg: Odometry,
+    pose: Pose2D,
+    cov: npt.ArrayLike | None,
+    t_ns: int,
+    frame_id: str,
+    child_frame_id: str = "base_link",
+    twist: tuple[float, float] = (0.0, 0.0),
+) -> Odometry:
+    """Overwrite `msg` in place (publishers reuse one message: building one costs ~0.2 ms)."""
+    msg.header.stamp.sec = int(t_ns // NS_PER_S)
+    msg.header.stamp.nanosec = int(t_ns % NS_PER_S)
     msg.header.frame_id = frame_id
     msg.child_frame_id = child_frame_id
-    msg.pose.pose.position.x = pose.x
-    msg.pose.pose.position.y = pose.y
-    msg.pose.pose.orientation = yaw_to_quaternion(pose.theta)
+    position = msg.pose.pose.position
+    position.x = pose.x
+    position.y = pose.y
+    q = msg.pose.pose.orientation
+    q.z = math.sin(pose.theta / 2.0)
+    q.w = math.cos(pose.theta / 2.0)
     full = np.zeros((6, 6), dtype=np.float64)
     if cov is not None:
         c = np.asarray(cov, dtype=np.float64)
         if c.shape != (3, 3) or not np.all(np.isfinite(c)):
             raise ConversionError(f"odometry covariance must be a finite 3x3, got {c.shape}")
-        full[np.ix_(_COV_INDEX, _COV_INDEX)] = c
-    msg.pose.covariance = full.reshape(-1).tolist()
+        full[_COV_ROWS, _COV_COLS] = c
+    msg.pose.covariance = full.reshape(-1)
     msg.twist.twist.linear.x = float(twist[0])
     msg.twist.twist.angular.z = float(twist[1])
     return msg
@@ -152,7 +169,7 @@ def odometry_to_pose(msg: Odometry) -> tuple[Pose2D, FloatArray, int]:
     except IslandTypeError as exc:
         raise ConversionError(f"odometry pose: {exc}") from None
     full = np.asarray(msg.pose.covariance, dtype=np.float64).reshape(6, 6)
-    return pose, full[np.ix_(_COV_INDEX, _COV_INDEX)].copy(), time_to_ns(msg.header.stamp)
+    return pose, full[_COV_ROWS, _COV_COLS], time_to_ns(msg.header.stamp)
 
 
 # ----------------------------------------------------------------------------- Twist

@@ -155,6 +155,11 @@ class SimLoopConfig:
         metadata={"help": "sonar scans (and controller periods) per simulated second; must "
                   "divide physics_rate_hz [Hz]"},
     )
+    publish_rate_hz: float = field(
+        default=50.0,
+        metadata={"help": "rate of /odom, /ground_truth and /clock; must divide "
+                  "physics_rate_hz and be a multiple of sensor_rate_hz [Hz]"},
+    )
     real_time_factor: float = field(
         default=1.0,
         metadata={"help": "simulated seconds per wall second; 0 = as fast as possible [-]"},
@@ -175,6 +180,10 @@ class SimLoopConfig:
         default=0.5,
         metadata={"help": "stop the robot when no /cmd_vel arrived for this simulated time [s]"},
     )
+    stop_after_s: float = field(
+        default=0.0,
+        metadata={"help": "stop stepping at this simulated time; 0 = run forever [s]"},
+    )
 
     def __post_init__(self) -> None:
         _check_finite(
@@ -182,9 +191,11 @@ class SimLoopConfig:
             {
                 "physics_rate_hz": self.physics_rate_hz,
                 "sensor_rate_hz": self.sensor_rate_hz,
+                "publish_rate_hz": self.publish_rate_hz,
                 "real_time_factor": self.real_time_factor,
                 "lockstep_timeout_s": self.lockstep_timeout_s,
                 "cmd_timeout_s": self.cmd_timeout_s,
+                "stop_after_s": self.stop_after_s,
             },
         )
         if self.physics_rate_hz <= 0 or self.sensor_rate_hz <= 0:
@@ -195,17 +206,37 @@ class SimLoopConfig:
                 f"SimLoopConfig: sensor_rate_hz ({self.sensor_rate_hz}) must divide "
                 f"physics_rate_hz ({self.physics_rate_hz}) into a whole number of steps"
             )
+        pub = self.physics_rate_hz / self.publish_rate_hz if self.publish_rate_hz > 0 else 0.0
+        per = self.publish_rate_hz / self.sensor_rate_hz
+        if (pub < 1 or abs(pub - round(pub)) > 1e-9 or per < 1 or abs(per - round(per)) > 1e-9):
+            raise RobotError(
+                f"SimLoopConfig.publish_rate_hz ({self.publish_rate_hz}) must divide "
+                f"physics_rate_hz ({self.physics_rate_hz}) and be a whole multiple of "
+                f"sensor_rate_hz ({self.sensor_rate_hz})"
+            )
         if self.real_time_factor < 0:
             raise RobotError(
                 f"SimLoopConfig.real_time_factor: must be >= 0, got {self.real_time_factor}"
             )
         if self.lockstep_timeout_s <= 0 or self.cmd_timeout_s <= 0:
             raise RobotError("SimLoopConfig: lockstep_timeout_s and cmd_timeout_s must be > 0")
+        if self.stop_after_s < 0:
+            raise RobotError(f"SimLoopConfig.stop_after_s: must be >= 0, got {self.stop_after_s}")
 
     @property
     def dt_s(self) -> float:
         """Fixed physics step [s]."""
         return 1.0 / self.physics_rate_hz
+
+    @property
+    def dt_ns(self) -> int:
+        """Fixed physics step [ns] (sim time advances in whole steps)."""
+        return round(1e9 / self.physics_rate_hz)
+
+    @property
+    def steps_per_publish(self) -> int:
+        """Physics steps between publications of /odom, /ground_truth and /clock [-]."""
+        return round(self.physics_rate_hz / self.publish_rate_hz)
 
     @property
     def steps_per_sensor_period(self) -> int:
@@ -309,6 +340,7 @@ class SimRobot:
         self.collisions = 0  # number of times a wall stopped the robot (rising edges)
         self.blocked_steps = 0
         self._was_blocked = False
+        self._clearance_cache: float | None = None  # centre-to-wall distance at the true pose
         o = self.odometry
         b_nominal = self.robot.wheelbase_m / (1.0 + o.wheelbase_error)
         self._b_true = self.robot.wheelbase_m
@@ -343,7 +375,12 @@ class SimRobot:
     @property
     def clearance_m(self) -> float:
         """Distance from the robot's centre to the nearest wall minus its radius [m]."""
-        return disk_clearance_m(self._segments, self._true[0], self._true[1]) - self.robot.radius_m
+        return self._centre_clearance_m() - self.robot.radius_m
+
+    def _centre_clearance_m(self) -> float:
+        if self._clearance_cache is None:
+            self._clearance_cache = disk_clearance_m(self._segments, self._true[0], self._true[1])
+        return self._clearance_cache
 
     # --- odometry model ------------------------------------------------------------------------
     def systematic_increment(self, ds_m: float, dtheta_rad: float) -> tuple[float, float]:
@@ -382,12 +419,14 @@ class SimRobot:
         blocked = False
         if ds != 0.0:
             cand = arc_update(self._true, ds, dth)
-            before = disk_clearance_m(self._segments, self._true[0], self._true[1])
+            before = self._centre_clearance_m()
             after = disk_clearance_m(self._segments, cand[0], cand[1])
             if after < self.robot.radius_m and after < before - _CLEARANCE_EPS_M:
                 blocked = True  # the disk would enter a wall: the wheels stop, rotation only
                 ds = 0.0
                 self._v = 0.0
+            else:
+                self._clearance_cache = after
         self._true = arc_update(self._true, ds, dth)
         self.distance_m += abs(ds)
         if blocked:

@@ -1,0 +1,189 @@
+"""hall_follower_node: sonar scans + odometry -> /cmd_vel by the hall-following state machine.
+
+Subscribes  /sonar/scan               sensor_msgs/LaserScan
+            /odom                     nav_msgs/Odometry
+Publishes   /cmd_vel                  geometry_msgs/Twist, exactly one per scan processed (none
+                                      while paused, so another node can drive)
+            /hall_follower/strategy   std_msgs/String, latched: the executed control strategy in
+                                      the paper's Table 1 form `Go 125, Rot 270, Go 652`
+Services    /hall_follower/reset      std_srvs/Trigger: forget the strategy (restart the record)
+            /hall_follower/enable     std_srvs/SetBool: false pauses, true resumes
+
+Each scan is paired with the odometry message of the SAME stamp (the simulator publishes both
+at every sensor period), so the controller's inputs do not depend on delivery order; a scan
+whose stamp has no odometry is paired with the newest older odometry once a newer one arrives.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections import OrderedDict, deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import Twist
+from island_msgs_py.ros_params import declare_config, ensure_ros_env
+from island_msgs_py.types import FloatArray, Pose2D
+from nav_msgs.msg import Odometry
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import LaserScan
+from std_msgs.msg import String
+from std_srvs.srv import SetBool, Trigger
+
+from island_sim.conversions import (
+    NS_PER_S,
+    ConversionError,
+    command_to_twist,
+    odometry_to_pose,
+    scan_to_arrays,
+)
+from island_sim.core.hall_follower import (
+    HallFollower,
+    HallFollowerConfig,
+    HallFollowerError,
+)
+
+NODE_NAME = "hall_follower_node"
+WARN_THROTTLE_S = 2.0
+STREAM_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                        reliability=ReliabilityPolicy.RELIABLE)
+LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                     reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+@dataclass(frozen=True)
+class HallFollowerNodeConfig:
+    """Parameters of hall_follower_node (the controller's own are `follower.*`)."""
+
+    seed: int = field(default=0, metadata={"help": "seed of the random turn policy [-]"})
+    odom_buffer: int = field(
+        default=200, metadata={"help": "odometry messages kept for pairing with scans [-]"}
+    )
+    follower: HallFollowerConfig = field(default_factory=HallFollowerConfig)
+
+
+class HallFollowerNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self.cfg = declare_config(self, "", HallFollowerNodeConfig())
+        self.follower = HallFollower(self.cfg.follower, np.random.default_rng(self.cfg.seed))
+        self.scans_processed = 0
+        self.bad_msg_count = 0
+        self._odom: OrderedDict[int, Pose2D] = OrderedDict()
+        self._pending: deque[tuple[int, FloatArray, FloatArray]] = deque()
+        self._last_strategy: str | None = None
+        self.cmd_pub = self.create_publisher(Twist, "/cmd_vel", STREAM_QOS)
+        self.strategy_pub = self.create_publisher(String, "/hall_follower/strategy", LATCHED)
+        self.create_subscription(LaserScan, "/sonar/scan", self._on_scan, STREAM_QOS)
+        self.create_subscription(Odometry, "/odom", self._on_odom, STREAM_QOS)
+        self.create_service(Trigger, "/hall_follower/reset", self._on_reset)
+        self.create_service(SetBool, "/hall_follower/enable", self._on_enable)
+        self._publish_strategy()
+
+    # --- inputs --------------------------------------------------------------------------------
+    def _warn(self, what: str, exc: Exception) -> None:
+        self.bad_msg_count += 1
+        self.get_logger().warn(f"ignored bad {what} ({self.bad_msg_count} so far): {exc}",
+                               throttle_duration_sec=WARN_THROTTLE_S)
+
+    def _on_odom(self, msg: Odometry) -> None:
+        try:
+            pose, _, t_ns = odometry_to_pose(msg)
+        except ConversionError as exc:
+            self._warn("/odom", exc)
+            return
+        self._odom[t_ns] = pose
+        while len(self._odom) > self.cfg.odom_buffer:
+            self._odom.popitem(last=False)
+        self._drain(newest_ns=t_ns)
+
+    def _on_scan(self, msg: LaserScan) -> None:
+        try:
+            ranges, angles = scan_to_arrays(msg)
+        except ConversionError as exc:
+            self._warn("/sonar/scan", exc)
+            return
+        t_ns = int(msg.header.stamp.sec) * NS_PER_S + int(msg.header.stamp.nanosec)
+        self._pending.append((t_ns, ranges, angles))
+        self._drain(newest_ns=next(reversed(self._odom)) if self._odom else None)
+
+    def _drain(self, newest_ns: int | None) -> None:
+        """Process pending scans in order: exact-stamp odometry, or older once newer exists."""
+        while self._pending:
+            t_ns, ranges, angles = self._pending[0]
+            pose = self._odom.get(t_ns)
+            if pose is None:
+                if newest_ns is None or newest_ns <= t_ns:
+                    return  # its odometry may still come
+                older = [k for k in self._odom if k <= t_ns]
+                if not older:
+                    self._pending.popleft()
+                    self._warn("/sonar/scan", ValueError(f"no odometry at or before {t_ns} ns"))
+                    continue
+                pose = self._odom[older[-1]]
+            self._pending.popleft()
+            self._process(t_ns, ranges, angles, pose)
+
+    def _process(self, t_ns: int, ranges: FloatArray, angles: FloatArray, pose: Pose2D) -> None:
+        try:
+            v, w = self.follower.update(ranges, angles, pose, t_ns * 1e-9)
+        except HallFollowerError as exc:
+            self._warn("scan for the follower", exc)
+            return
+        self.scans_processed += 1
+        if self.follower.enabled:
+            self.cmd_pub.publish(command_to_twist(v, w))
+        self._publish_strategy()
+
+    # --- services ------------------------------------------------------------------------------
+    def _on_reset(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+        self.follower.reset_strategy()
+        self._publish_strategy()
+        resp.success = True
+        resp.message = "control strategy reset"
+        return resp
+
+    def _on_enable(self, req: SetBool.Request, resp: SetBool.Response) -> SetBool.Response:
+        self.follower.set_enabled(bool(req.data))
+        self._publish_strategy()
+        resp.success = True
+        resp.message = "hall following " + ("enabled" if req.data else "paused")
+        return resp
+
+    def _publish_strategy(self) -> None:
+        text = str(self.follower.strategy())
+        if text != self._last_strategy:
+            self._last_strategy = text
+            self.strategy_pub.publish(String(data=text))
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    ensure_ros_env()
+    rclpy.init(args=args)
+    try:
+        node = HallFollowerNode()
+    except ValueError as exc:  # bad parameters (HallFollowerError names the field)
+        print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,283 @@
+"""odometry_node: the simulated robot. It owns sim time and steps physics at a fixed dt.
+
+Subscribes  /cmd_vel        geometry_msgs/Twist (NaN/inf ignored with a throttled warning, counted)
+Publishes   /odom           nav_msgs/Odometry  odom -> base_link, drifting pose + its covariance
+            /ground_truth   nav_msgs/Odometry  map -> base_link, the true pose (evaluation only)
+            /clock          rosgraph_msgs/Clock when sim.own_clock
+
+Pacing: `sim.real_time_factor` simulated seconds per wall second, or 0 = as fast as possible;
+the wall clock only decides WHEN to step, every step is one fixed `1 / sim.physics_rate_hz`.
+Lockstep (`sim.lockstep`): at every sensor period boundary, after publishing that instant, the
+robot waits until it has received that period's /cmd_vel (counted) before stepping on, so a
+seed gives one trajectory regardless of DDS timing; after `sim.lockstep_timeout_s` of wall time
+without it, it logs and steps on with the last command.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import Twist
+from island_msgs_py.ros_params import declare_config, ensure_ros_env
+from island_msgs_py.types import Pose2D
+from nav_msgs.msg import Odometry
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+
+from island_sim.conversions import (
+    NS_PER_S,
+    ConversionError,
+    fill_odometry,
+    twist_to_command,
+)
+from island_sim.core.robot import (
+    OdometryConfig,
+    RobotConfig,
+    SimLoopConfig,
+    SimRobot,
+)
+from island_sim.core.world import load_world
+
+NODE_NAME = "odometry_node"
+WARN_THROTTLE_S = 2.0
+# Most physics steps taken in one timer callback, so subscriptions are served in between.
+_MAX_STEPS_PER_CALLBACK = 50
+# Wall period [s] of the pacing timer when a real-time factor is set.
+_PACING_PERIOD_S = 0.005
+STREAM_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                        reliability=ReliabilityPolicy.RELIABLE)
+
+
+class OdometryNodeError(ValueError):
+    """Bad node parameter (the message names it)."""
+
+
+@dataclass(frozen=True)
+class OdometryNodeConfig:
+    """Parameters of odometry_node (nested groups become `sim.*`, `robot.*`, `odometry.*`)."""
+
+    world: str = field(
+        default="paper_fig4", metadata={"help": "built-in world name or world file path"}
+    )
+    seed: int = field(default=0, metadata={"help": "seed of the odometry noise generator [-]"})
+    start_pose: str = field(
+        default="",
+        metadata={"help": "start pose 'x,y,theta' [m, m, rad]; empty = the world's start"},
+    )
+    odom_frame: str = field(default="odom", metadata={"help": "frame of /odom"})
+    map_frame: str = field(default="map", metadata={"help": "frame of /ground_truth"})
+    base_frame: str = field(default="base_link", metadata={"help": "robot body frame"})
+    sim: SimLoopConfig = field(default_factory=SimLoopConfig)
+    robot: RobotConfig = field(default_factory=RobotConfig)
+    odometry: OdometryConfig = field(default_factory=OdometryConfig)
+
+
+def parse_start_pose(text: str) -> Pose2D | None:
+    """'x,y,theta' -> Pose2D; empty -> None; OdometryNodeError naming the parameter otherwise."""
+    if not text.strip():
+        return None
+    try:
+        vals = [float(v) for v in text.split(",")]
+        if len(vals) != 3:
+            raise ValueError
+        return Pose2D(*vals)
+    except ValueError:
+        raise OdometryNodeError(
+            f"start_pose: expected 'x,y,theta' with three finite numbers, got {text!r}"
+        ) from None
+
+
+class OdometryNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self.cfg = declare_config(self, "", OdometryNodeConfig())
+        sim = self.cfg.sim
+        self.world = load_world(self.cfg.world)
+        start = parse_start_pose(self.cfg.start_pose) or self.world.start_pose
+        self.robot = SimRobot(self.world, start, np.random.default_rng(self.cfg.seed),
+                              self.cfg.robot, self.cfg.odometry)
+        self.dt_ns = sim.dt_ns
+        self.steps_per_period = sim.steps_per_sensor_period
+        self.steps_per_publish = sim.steps_per_publish
+        self._truth_msg = Odometry()  # reused: publishing copies, building costs ~0.2 ms
+        self._odom_msg = Odometry()
+        self._clock_msg = Clock()
+        self.step_count = 0
+        self.cmd = (0.0, 0.0)
+        self.cmd_count = 0
+        self.bad_cmd_count = 0
+        self.lockstep_timeouts = 0
+        self._last_cmd_ns = 0
+        self._waiting_for: int | None = None  # lockstep: cmd_count needed to step on
+        self._wait_since = 0.0
+        self._started = not sim.lockstep
+        self._created = time.monotonic()
+        self._pace_origin: tuple[float, int] | None = None
+        self.odom_pub = self.create_publisher(Odometry, "/odom", STREAM_QOS)
+        self.truth_pub = self.create_publisher(Odometry, "/ground_truth", STREAM_QOS)
+        self.clock_pub = (
+            self.create_publisher(Clock, "/clock", STREAM_QOS) if sim.own_clock else None
+        )
+        self.create_subscription(Twist, "/cmd_vel", self._on_cmd, STREAM_QOS)
+        period = _PACING_PERIOD_S if sim.real_time_factor > 0 else 0.0
+        self.timer = self.create_timer(period, self._on_timer)
+        self.create_timer(0.05, self._check_lockstep_timeout)
+        self.get_logger().info(
+            f"world {self.world.name!r} ({self.world.segments.shape[0]} walls), start {start}, "
+            f"{sim.physics_rate_hz:g} Hz physics, rtf {sim.real_time_factor:g}, "
+            f"lockstep {sim.lockstep}"
+        )
+
+    # --- inputs --------------------------------------------------------------------------------
+    def _on_cmd(self, msg: Twist) -> None:
+        try:
+            self.cmd = twist_to_command(msg)
+        except ConversionError as exc:
+            self.bad_cmd_count += 1
+            self.get_logger().warn(f"ignored bad /cmd_vel ({self.bad_cmd_count} so far): {exc}",
+                                   throttle_duration_sec=WARN_THROTTLE_S)
+            return
+        self.cmd_count += 1
+        self._last_cmd_ns = self.sim_time_ns
+        if self._waiting_for is not None and self.cmd_count >= self._waiting_for:
+            self._waiting_for = None
+            self.timer.reset()
+
+    # --- stepping ------------------------------------------------------------------------------
+    @property
+    def sim_time_ns(self) -> int:
+        return self.step_count * self.dt_ns
+
+    @property
+    def finished(self) -> bool:
+        stop = self.cfg.sim.stop_after_s
+        return stop > 0 and self.sim_time_ns >= round(stop * 1e9)
+
+    def _command(self) -> tuple[float, float]:
+        timeout_ns = round(self.cfg.sim.cmd_timeout_s * 1e9)
+        if self.cmd_count == 0 or self.sim_time_ns - self._last_cmd_ns > timeout_ns:
+            return 0.0, 0.0
+        return self.cmd
+
+    def _ready_to_start(self) -> bool:
+        """Lockstep starts once the controller and the sensor are connected (or after timeout)."""
+        connected = (
+            self.count_publishers("/cmd_vel") > 0
+            and self.truth_pub.get_subscription_count() > 0
+            and self.odom_pub.get_subscription_count() > 0
+        )
+        waited = time.monotonic() - self._created > self.cfg.sim.lockstep_timeout_s
+        if waited and not connected:
+            self.get_logger().warn("lockstep: no controller/sensor connected, starting anyway")
+        return connected or waited
+
+    def _on_timer(self) -> None:
+        if self._waiting_for is not None:
+            self.timer.cancel()
+            return
+        if not self._started:
+            if not self._ready_to_start():
+                return
+            self._started = True
+            self._publish()
+            if self._boundary_wait():
+                return
+        sim = self.cfg.sim
+        budget = _MAX_STEPS_PER_CALLBACK
+        if sim.real_time_factor > 0:
+            now = time.monotonic()
+            if self._pace_origin is None:
+                self._pace_origin = (now, self.step_count)
+            t0, k0 = self._pace_origin
+            due = k0 + int((now - t0) * sim.real_time_factor * 1e9 / self.dt_ns) - self.step_count
+            if due > _MAX_STEPS_PER_CALLBACK:  # fell behind: do not try to catch up later
+                self._pace_origin = (now, self.step_count)
+            budget = max(0, min(due, _MAX_STEPS_PER_CALLBACK))
+        else:
+            budget = min(budget, self.steps_per_period)
+        for _ in range(budget):
+            if self.finished:
+                self.timer.cancel()
+                return
+            v, w = self._command()
+            self.robot.step(v, w, self.dt_ns * 1e-9)
+            self.step_count += 1
+            if self.step_count % self.steps_per_publish == 0:
+                self._publish()
+            if self._boundary_wait():
+                return
+
+    def _boundary_wait(self) -> bool:
+        """At a sensor boundary in lockstep, wait for that period's command; True if waiting."""
+        if not self.cfg.sim.lockstep or self.step_count % self.steps_per_period != 0:
+            return False
+        needed = self.step_count // self.steps_per_period + 1
+        if self.cmd_count >= needed:
+            return False
+        self._waiting_for = needed
+        self._wait_since = time.monotonic()
+        self.timer.cancel()
+        return True
+
+    def _check_lockstep_timeout(self) -> None:
+        if self._waiting_for is None:
+            return
+        if time.monotonic() - self._wait_since > self.cfg.sim.lockstep_timeout_s:
+            self.lockstep_timeouts += 1
+            self.get_logger().warn(
+                f"lockstep: no /cmd_vel #{self._waiting_for} within "
+                f"{self.cfg.sim.lockstep_timeout_s:g} s wall; stepping on with the last command "
+                f"({self.lockstep_timeouts} timeouts)",
+                throttle_duration_sec=WARN_THROTTLE_S,
+            )
+            self.cmd_count = self._waiting_for  # resynchronize the count with the periods
+            self._waiting_for = None
+            self.timer.reset()
+
+    def _publish(self) -> None:
+        t_ns = self.sim_time_ns
+        if self.clock_pub is not None:
+            self._clock_msg.clock.sec = int(t_ns // NS_PER_S)
+            self._clock_msg.clock.nanosec = int(t_ns % NS_PER_S)
+            self.clock_pub.publish(self._clock_msg)
+        vel = self.robot.velocity
+        c = self.cfg
+        self.truth_pub.publish(fill_odometry(self._truth_msg, self.robot.true_pose, None, t_ns,
+                                             c.map_frame, c.base_frame, vel))
+        self.odom_pub.publish(fill_odometry(self._odom_msg, self.robot.odom_pose,
+                                            self.robot.odom_covariance, t_ns, c.odom_frame,
+                                            c.base_frame, vel))
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    ensure_ros_env()
+    rclpy.init(args=args)
+    try:
+        node = OdometryNode()
+    except ValueError as exc:  # bad parameters: WorldError, RobotError, ...
+        print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,132 @@
+"""sonar_node: the simulated sonar ring, driven by the ground-truth stamps (not a wall timer).
+
+Subscribes  /ground_truth      nav_msgs/Odometry (the true pose, from odometry_node)
+Publishes   /sonar/scan        sensor_msgs/LaserScan, once per sensor period: when a ground-truth
+                               stamp crosses a period boundary, the scan is computed at that pose
+                               and carries that stamp (so scan k is the pose at t_k)
+            /sonar/range_<i>   sensor_msgs/Range per transducer when `publish_ranges`
+                               (ULTRASOUND, field_of_view = beam width, frame `sonar_<i>`)
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import rclpy
+from island_msgs_py.ros_params import declare_config, ensure_ros_env
+from nav_msgs.msg import Odometry
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import LaserScan, Range
+
+from island_sim.conversions import ConversionError, arrays_to_scan, odometry_to_pose, range_msg
+from island_sim.core.robot import SimLoopConfig
+from island_sim.core.sonar import SonarConfig, SonarModel
+from island_sim.core.world import load_world
+
+NODE_NAME = "sonar_node"
+WARN_THROTTLE_S = 2.0
+STREAM_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                        reliability=ReliabilityPolicy.RELIABLE)
+
+
+class SonarNodeError(ValueError):
+    """Bad node parameter (the message names it)."""
+
+
+@dataclass(frozen=True)
+class SonarNodeConfig:
+    """Parameters of sonar_node (the ring's own parameters are `sonar.*`)."""
+
+    world: str = field(
+        default="paper_fig4", metadata={"help": "built-in world name or world file path"}
+    )
+    seed: int = field(default=0, metadata={"help": "seed of the range noise generator [-]"})
+    sensor_rate_hz: float = field(
+        default=SimLoopConfig.sensor_rate_hz,
+        metadata={"help": "scans per simulated second (period boundaries of the stamps) [Hz]"},
+    )
+    publish_ranges: bool = field(
+        default=False,
+        metadata={"help": "also publish one sensor_msgs/Range per transducer [bool]"},
+    )
+    frame_id: str = field(default="base_link", metadata={"help": "frame of the LaserScan"})
+    sonar: SonarConfig = field(default_factory=SonarConfig)
+
+
+class SonarNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self.cfg = declare_config(self, "", SonarNodeConfig())
+        if not (math.isfinite(self.cfg.sensor_rate_hz) and self.cfg.sensor_rate_hz > 0):
+            raise SonarNodeError(f"sensor_rate_hz: must be > 0, got {self.cfg.sensor_rate_hz}")
+        self.world = load_world(self.cfg.world)
+        self.model = SonarModel(self.cfg.sonar)
+        self.rng = np.random.default_rng(self.cfg.seed)
+        self.period_ns = round(1e9 / self.cfg.sensor_rate_hz)
+        self.limits_m = self.model.scan_limits_m()
+        self.scans_published = 0
+        self.bad_msg_count = 0
+        self._last_period: int | None = None
+        self.scan_pub = self.create_publisher(LaserScan, "/sonar/scan", STREAM_QOS)
+        self.range_pubs = []
+        if self.cfg.publish_ranges:
+            self.range_pubs = [
+                self.create_publisher(Range, f"/sonar/range_{i}", STREAM_QOS)
+                for i in range(self.model.angles_rad.shape[0])
+            ]
+        self.create_subscription(Odometry, "/ground_truth", self._on_truth, STREAM_QOS)
+
+    def _on_truth(self, msg: Odometry) -> None:
+        try:
+            pose, _, t_ns = odometry_to_pose(msg)
+        except ConversionError as exc:
+            self.bad_msg_count += 1
+            self.get_logger().warn(f"ignored bad /ground_truth: {exc}",
+                                   throttle_duration_sec=WARN_THROTTLE_S)
+            return
+        period = t_ns // self.period_ns
+        if self._last_period is not None and period <= self._last_period:
+            return  # still inside the period of the last scan (or an old message)
+        self._last_period = period
+        ranges = self.model.scan(self.world, pose, self.rng)
+        # transducer i is scan index i; bearings increase from first_angle_deg (CCW)
+        scan = arrays_to_scan(ranges, self.model.angles_rad, self.limits_m, t_ns,
+                              self.cfg.frame_id, self.period_ns * 1e-9)
+        self.scan_pub.publish(scan)
+        self.scans_published += 1
+        fov = math.radians(self.cfg.sonar.beam_width_deg)
+        for i, pub in enumerate(self.range_pubs):
+            pub.publish(range_msg(float(ranges[i]), fov, self.limits_m, t_ns, f"sonar_{i}"))
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    ensure_ros_env()
+    rclpy.init(args=args)
+    try:
+        node = SonarNode()
+    except ValueError as exc:  # bad parameters: WorldError, SonarError, ...
+        print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
