@@ -35,7 +35,7 @@ from island_sim.core.world import World
 from island_mapping.core.measure import as_points, as_world, ray_angles
 
 # Rays per ray-cast call (bounds the temporaries of the brute-force caster).
-_RAYS_PER_CHUNK = 1 << 17
+_RAYS_PER_CHUNK = 1 << 13
 # Heading information below this [1/rad^2] is treated as none when forming the Schur complement.
 _TINY_INFO = 1e-12
 

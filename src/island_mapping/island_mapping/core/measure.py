@@ -32,8 +32,8 @@ import numpy.typing as npt
 from island_msgs_py.types import FloatArray, ModelType, as_segments
 from island_sim.core.world import World
 
-# Rays per ray-cast call: bounds the (rays x segments) temporaries of the brute-force caster.
-_RAYS_PER_CHUNK = 1 << 17
+# Rays per ray-cast call: small enough to stay in cache (measured 2x faster than 1 << 17).
+_RAYS_PER_CHUNK = 1 << 13
 # Upper bound on (points x segments) bins held at once by the per-segment bincount.
 _BINS_PER_CHUNK = 1 << 23
 
