@@ -94,6 +94,18 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
         "seed": args.seed,
         "scan_match_tolerance_s": rd.SCAN_MATCH_TOLERANCE_S,
         "config": _config_summary(cfg),
+        "islands": [
+            {
+                "id": i.island.id,
+                "anchor_scan": i.anchor_scan,
+                "built_at_s": round(i.island.built_at_s, 3),
+                "model_type": i.island.model_type.value,
+                "normalized_measure": round(i.island.r, 4),
+                "segments": len(i.island.model),
+                "localized_scans": int(np.sum(run.scan_island == i.island.id)),
+            }
+            for i in run.islands
+        ],
     }
     metrics["_run"] = run
     return metrics

@@ -26,7 +26,7 @@ import numpy.typing as npt
 from island_msgs_py.types import Island, LineModel, ModelType, Pose2D
 
 from island_mapping.core.builder import BuilderConfig, eq3_bound, normalized_measures
-from island_mapping.core.lines import LASER_LINE_FIT, LineFitConfig
+from island_mapping.core.lines import LASER_LINE_FIT, LineFitConfig, point_segment_distance
 from island_mapping.core.localize import LocalizeConfig, localize
 from island_mapping.core.measure import MeasureConfig
 
@@ -560,6 +560,14 @@ class RealIslandConfig:
     min_matched_fraction: float = field(
         default=0.6, metadata={"help": "smallest fraction of scan points matched to the model [-]"}
     )
+    inlier_dist_m: float = field(
+        default=0.1, metadata={"help": "a scan point within this of the model is an inlier [m]"}
+    )
+    min_inlier_fraction: float = field(
+        default=0.0,
+        metadata={"help": "a fix needs at least this fraction of scan points as inliers "
+                  "(0 = no inlier test) [-]"},
+    )
     max_correction_m: float = field(
         default=0.6,
         metadata={"help": "a fix may move the odometry guess at most this far [m]"},
@@ -722,16 +730,25 @@ def voxel_thin(points: FloatArray, cell_m: float) -> FloatArray:
     return np.stack([xs, ys], axis=1)
 
 
-def _fix_ok(fix: ScanFix, guess: FloatArray, cfg: RealIslandConfig, n_points: int) -> bool:
-    if not fix.converged or n_points < MIN_FIX_POINTS or not np.all(np.isfinite(fix.pose)):
+def _fix_ok(
+    fix: ScanFix, guess: FloatArray, cfg: RealIslandConfig, points: FloatArray, model: LineModel
+) -> bool:
+    """A fix is trusted when it converged, moved the guess only a little, and enough of the
+    scan's points lie on the model (points seeing beyond the island's model do not count
+    against it, unlike in an RMS residual)."""
+    if not fix.converged or points.shape[0] < MIN_FIX_POINTS or not np.all(np.isfinite(fix.pose)):
         return False
     if fix.residual_m > cfg.max_residual_m or fix.matched_fraction < cfg.min_matched_fraction:
         return False
     d = relative_poses(guess, fix.pose)[0]
-    return bool(
-        math.hypot(d[0], d[1]) <= cfg.max_correction_m
-        and abs(math.degrees(d[2])) <= cfg.max_correction_deg
-    )
+    if math.hypot(d[0], d[1]) > cfg.max_correction_m:
+        return False
+    if abs(math.degrees(d[2])) > cfg.max_correction_deg:
+        return False
+    if cfg.min_inlier_fraction <= 0 or len(model) == 0:
+        return True
+    dist = point_segment_distance(transform_points(fix.pose, points), model.segments).min(axis=1)
+    return bool(np.mean(dist <= cfg.inlier_dist_m) >= cfg.min_inlier_fraction)
 
 
 # A fix from fewer scan points is not trusted (3 points barely constrain x, y and theta).
@@ -785,7 +802,7 @@ def build_islands_offline(
     def try_fix(k: int, i: int, guess: FloatArray) -> FloatArray | None:
         pts = scans.points[i]
         fix = loc(islands[k].island.model, pts, guess)
-        if not _fix_ok(fix, guess, cfg, pts.shape[0]):
+        if not _fix_ok(fix, guess, cfg, pts, islands[k].island.model):
             return None
         if math.hypot(fix.pose[0], fix.pose[1]) > cfg.coverage_radius_m:
             return None
@@ -874,7 +891,7 @@ def _window_model(
         pts = scans.points[j]
         if anchor_model is not None and len(anchor_model) and pts.shape[0]:
             fix = loc(anchor_model, pts, guess)
-            if _fix_ok(fix, guess, cfg, pts.shape[0]):
+            if _fix_ok(fix, guess, cfg, pts, anchor_model):
                 pose = fix.pose
         placed.append((j, pose))
         clouds.append(transform_points(pose, pts))

@@ -73,6 +73,7 @@ def plot_islands(
         for x1, y1, x2, y2 in seg:
             ax.plot([x1 + ox, x2 + ox], [y1 + oy, y2 + oy], color=colour, lw=1.0)
         ax.plot([ox], [oy], "o", color="tab:red", ms=4)
+        ax.plot([ox, ox + 1.0], [oy, oy], color="tab:red", lw=1.5)  # the frame's x axis, 1 m
         ax.annotate(f"{isl.island.id}", (ox, oy), textcoords="offset points", xytext=(4, 4),
                     fontsize=7)
     ax.set_aspect("equal")
