@@ -24,6 +24,7 @@ setup(
     entry_points={
         'console_scripts': [
             'island_builder_node = island_mapping.nodes.island_builder_node:main',
+            'island_localizer_node = island_mapping.nodes.island_localizer_node:main',
             'topo_graph_server_node = island_mapping.nodes.topo_graph_server_node:main',
             'recorder_node = island_mapping.nodes.recorder_node:main',
             'islands = island_mapping.cli:main'

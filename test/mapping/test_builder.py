@@ -16,6 +16,7 @@ from island_mapping.core.builder import (
     BuilderError,
     BuilderEvent,
     CommandMode,
+    DismissReason,
     EventKind,
     IslandBuilder,
     RelativeCovariance,
@@ -132,6 +133,7 @@ def test_plain_corridor_star_is_dismissed_partially_and_returns_to_its_centre() 
     assert dismissed.partial
     assert len(dismissed.legs_m) == cfg.dismiss_min_legs < 4
     assert dismissed.measure < cfg.dismiss_fraction * dismissed.bound
+    assert dismissed.reason is DismissReason.MEASURE
     assert EventKind.ISLAND_ACCEPTED not in ks
     # The robot is handed back where the star started, facing the same way.
     assert started.anchor_odom is not None
@@ -240,7 +242,7 @@ def test_eq3_same_measure_accepted_when_lost_rejected_when_not(
     same measure builds an island."""
     fm = FixedMeasures(line=0.2)
     cfg = BuilderConfig(build_first_island=False, bound_floor=0.0, quick_reject_fraction=0.0,
-                        threshold_line=0.25, e_min_m=0.3)
+                        threshold_line=0.25, e_min_m=0.3, verify_localization=False)
     b = IslandBuilder(cfg, fit=fm.fit, evaluate=fm.evaluate)
     angles = np.linspace(0, 2 * math.pi, 16, endpoint=False)
     cov = np.diag([eps_m**2, eps_m**2, 0.0])
@@ -275,6 +277,21 @@ def test_eq3_same_measure_accepted_when_lost_rejected_when_not(
     assert len(decided.legs_m) == 4  # 0.8 >= 0.5 * bound: never dismissed early; full star
     assert decided.measure == pytest.approx(0.8)
     assert fm.calls >= 4
+
+
+def test_a_high_measure_in_a_plain_corridor_fails_the_localization_check() -> None:
+    """A stand-in measure says the corridor is excellent; the points seen from the origin
+    cannot fix the position along the corridor, so the island is refused anyway."""
+    fm = FixedMeasures(line=1.0)
+    cfg = BuilderConfig(build_first_island=False, quick_reject_fraction=0.0)
+    builder = IslandBuilder(cfg, evaluate=fm.evaluate)  # the real line fit
+    run = run_builder(corridor_world(), Pose2D(-20.0, 0.0, 0.0), builder, 60.0,
+                      lambda p: 0.05 * p)
+    dismissed = [e for e in run.events if e.kind is EventKind.ATTEMPT_DISMISSED]
+    assert dismissed and EventKind.ISLAND_ACCEPTED not in kinds(run.events)
+    d = dismissed[0]
+    assert d.reason is DismissReason.LOCALIZATION_CHECK
+    assert d.measure > d.bound and not d.partial and len(d.legs_m) == 4
 
 
 def test_eq3_bound_and_normalization() -> None:

@@ -54,7 +54,9 @@ from island_msgs_py.types import (
 
 from island_mapping.core.fisher import FisherConfig
 from island_mapping.core.lines import LineFitConfig, fit_lines
+from island_mapping.core.localize import LocalizeConfig, Solver, localize
 from island_mapping.core.measure import MeasureConfig, evaluate_models
+from island_msgs_py import json_io
 
 # A covariance difference below this is numerical noise [m^2].
 _COV_EPS_M2 = 1e-12
@@ -62,6 +64,12 @@ _COV_EPS_M2 = 1e-12
 
 class BuilderError(ValueError):
     """Bad input to the island builder (the message names the argument and the problem)."""
+
+
+def _point_to_line() -> LocalizeConfig:
+    """Localization with the Gauss-Newton point-to-line step (the Dudek-MacKenzie step reaches
+    the same fixed point but often needs more than its iteration limit)."""
+    return LocalizeConfig(solver=Solver.POINT_TO_LINE)
 
 
 @dataclass(frozen=True)
@@ -180,6 +188,26 @@ class BuilderConfig:
             "islands); false = accept at once [bool]"
         },
     )
+    verify_localization: bool = field(
+        default=True,
+        metadata={
+            "help": "before accepting, localize the points seen at the origin (the star turns "
+            "there through a full circle) against the new model from guesses offset by "
+            "verify_offset_m; accept only if every guess comes back to the origin [bool]"
+        },
+    )
+    verify_offset_m: float = field(
+        default=0.3, metadata={"help": "offset of the verification guesses [m]"}
+    )
+    verify_tol_m: float = field(
+        default=0.1, metadata={"help": "a verification localization must end this close [m]"}
+    )
+    centre_radius_m: float = field(
+        default=0.1,
+        metadata={
+            "help": "scans taken within this distance of the origin count as seen from it [m]"
+        },
+    )
     build_first_island: bool = field(
         default=True,
         metadata={"help": "build island 0 at the start pose before following (paper 8.2) [bool]"},
@@ -193,6 +221,10 @@ class BuilderConfig:
     )
     star: StarConfig = field(
         default_factory=StarConfig, metadata={"help": "the four-corner star routine"}
+    )
+    localize: LocalizeConfig = field(
+        default_factory=_point_to_line,
+        metadata={"help": "localization of the verification (point-to-line Gauss-Newton)"},
     )
     line_fit: LineFitConfig = field(
         default_factory=LineFitConfig, metadata={"help": "line fitting of the collected points"}
@@ -336,6 +368,11 @@ class CommandMode(StrEnum):
     DRIVE = "drive"  # the builder drives: publish (v, w)
 
 
+class DismissReason(StrEnum):
+    MEASURE = "measure"  # max_i(R_i/T_i) did not reach the eq. 3 bound
+    LOCALIZATION_CHECK = "localization_check"  # the origin's own data did not localize
+
+
 class EventKind(StrEnum):
     ATTEMPT_STARTED = "attempt_started"
     ATTEMPT_FAILED_AT_ONCE = "attempt_failed_at_once"
@@ -366,6 +403,7 @@ class BuilderEvent:
     island: Island | None = None
     edge: Edge | None = None
     accepted_island_id: int | None = None
+    reason: DismissReason | None = None
 
 
 @dataclass(frozen=True)
@@ -403,6 +441,7 @@ class _Attempt:
     bound: float
     first: bool
     points: list[FloatArray] = field(default_factory=list)  # in the origin frame [m]
+    centre_points: list[FloatArray] = field(default_factory=list)  # seen from the origin [m]
     leg: int = 0
     phase: _LegPhase = _LegPhase.TURN
     leg_length_m: float = 0.0
@@ -497,7 +536,12 @@ class IslandBuilder:
             return
         pts = _scan_points(r, a, self._odom)
         if self._state is _State.STAR and self._attempt is not None:
-            self._attempt.points.append(_to_frame(pts, self._attempt.anchor))
+            att = self._attempt
+            local = _to_frame(pts, att.anchor)
+            att.points.append(local)
+            rel = self._odom.relative_to(att.anchor)
+            if math.hypot(rel.x, rel.y) <= self.config.centre_radius_m:
+                att.centre_points.append(local)
         self._recent.append((self._path_m, pts))
         while self._recent and self._recent[0][0] < self._path_m - self.config.quick_history_m:
             self._recent.popleft()
@@ -597,9 +641,9 @@ class IslandBuilder:
             bound=bound,
             first=first,
         )
-        self._attempt.points.append(
-            _to_frame(_scan_points(*self._last_scan, self._odom), self._odom)
-        )
+        first_pts = _to_frame(_scan_points(*self._last_scan, self._odom), self._odom)
+        self._attempt.points.append(first_pts)
+        self._attempt.centre_points.append(first_pts)
         self._star_rel = RelativeCovariance()
         self._star_rel.update(self._odom, self._cov)
         self._state = _State.STAR
@@ -710,6 +754,9 @@ class IslandBuilder:
             return
         pts = np.concatenate(att.points, axis=0) if att.points else np.zeros((0, 2))
         model = self._fit(pts) if pts.shape[0] >= 2 else LineModel()
+        if self.config.verify_localization and not att.first and not self._verify(model):
+            self._dismiss(partial=False, reason=DismissReason.LOCALIZATION_CHECK)
+            return
         island = Island(
             id=len(self.islands),
             model=model,
@@ -748,7 +795,20 @@ class IslandBuilder:
         )
         self._state = _State.RETURNING
 
-    def _dismiss(self, partial: bool) -> None:
+    def _verify(self, model: LineModel) -> bool:
+        """Do the points seen from the origin localize back onto it from offset guesses?"""
+        att = self._attempt
+        assert att is not None
+        cfg = self.config
+        pts = np.concatenate(att.centre_points, axis=0) if att.centre_points else np.zeros((0, 2))
+        d = cfg.verify_offset_m
+        for gx, gy in ((0.0, 0.0), (d, 0.0), (-d, 0.0), (0.0, d), (0.0, -d)):
+            res = localize(model, pts, Pose2D(gx, gy, 0.0), cfg.localize)
+            if not res.converged or math.hypot(res.pose.x, res.pose.y) > cfg.verify_tol_m:
+                return False
+        return True
+
+    def _dismiss(self, partial: bool, reason: DismissReason | None = None) -> None:
         att = self._attempt
         assert att is not None
         att.outcome = EventKind.ATTEMPT_DISMISSED
@@ -761,6 +821,7 @@ class IslandBuilder:
             bound=att.bound,
             legs_m=tuple(att.legs_done),
             partial=partial,
+            reason=reason if reason is not None else DismissReason.MEASURE,
         )
         self._state = _State.RETURNING
 
@@ -813,3 +874,27 @@ def _to_frame(points: FloatArray, frame: Pose2D) -> FloatArray:
     c, s = math.cos(frame.theta), math.sin(frame.theta)
     d = points - np.array([frame.x, frame.y])
     return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
+
+
+def event_to_dict(e: BuilderEvent) -> dict[str, object]:
+    """The JSON form of a builder event (poses as {x, y, theta}, m and rad)."""
+    d: dict[str, object] = {
+        "kind": e.kind.value,
+        "t_s": e.t_s,
+        "odom_pose": json_io.pose_to_dict(e.odom_pose),
+        "epsilon_m": e.epsilon_m,
+        "measure": e.measure,
+        "bound": e.bound,
+        "legs_m": [list(leg) for leg in e.legs_m],
+        "partial": e.partial,
+        "anchor_odom": json_io.pose_to_dict(e.anchor_odom) if e.anchor_odom else None,
+    }
+    if e.island is not None:
+        d["island"] = json_io.island_to_dict(e.island)
+    if e.edge is not None:
+        d["edge"] = json_io.edge_to_dict(e.edge)
+    if e.accepted_island_id is not None:
+        d["accepted_island_id"] = e.accepted_island_id
+    if e.reason is not None:
+        d["reason"] = e.reason.value
+    return d

@@ -48,12 +48,25 @@ from island_sim.core.robot import OdometryConfig, RobotConfig, SimRobot
 from island_sim.core.sonar import SonarConfig, SonarModel
 from island_sim.core.world import World
 
+from island_mapping.core.builder import (
+    BuilderConfig,
+    BuilderEvent,
+    CommandMode,
+    EventKind,
+    IslandBuilder,
+)
 from island_mapping.core.graph import GraphError, TopoGraph, reverse_strategy
-from island_mapping.core.localize import LocalizationResult, LocalizeConfig, localize
+from island_mapping.core.localize import LocalizationResult, LocalizeConfig, Solver, localize
 
 
 class NavigateError(ValueError):
     """Bad input to route following (the message names what was wrong)."""
+
+
+def _point_to_line() -> LocalizeConfig:
+    """Localization with the Gauss-Newton point-to-line step (the Dudek-MacKenzie step reaches
+    the same fixed point but often needs more than its iteration limit)."""
+    return LocalizeConfig(solver=Solver.POINT_TO_LINE)
 
 
 @dataclass(frozen=True)
@@ -127,7 +140,8 @@ class NavigateConfig:
         default=900.0, metadata={"help": "simulated time limit of one edge [s]"}
     )
     localize: LocalizeConfig = field(
-        default_factory=LocalizeConfig, metadata={"help": "line-model localization"}
+        default_factory=_point_to_line,
+        metadata={"help": "line-model localization (point-to-line Gauss-Newton)"},
     )
 
     def __post_init__(self) -> None:
@@ -234,12 +248,15 @@ class _Sim:
     def t(self) -> float:
         return self.robot.time_s
 
-    def step(self, v: float, w: float) -> None:
+    def step(self, v: float, w: float) -> bool:
+        """One sensor period under (v [m/s], w [rad/s]); True if a wall stopped the robot."""
         if self.t > self.deadline_s:
             raise _SimTimeoutError()
+        blocked = False
         for _ in range(self.cfg.steps_per_scan):
-            self.robot.step(v, w, self.dt)
+            blocked |= self.robot.step(v, w, self.dt).blocked
         self.scan = self.sonar.scan(self.world, self.robot.true_pose, self.rng)
+        return blocked
 
     def scan_points_odom(self) -> FloatArray:
         """Points of the latest scan in the odometry frame [m]."""
@@ -289,7 +306,8 @@ class _Sim:
                     break
                 err = wrap_angle(math.atan2(dy, dx) - o.theta) if d > 0.1 else 0.0
                 w = float(np.clip(c.k_heading_per_s * err, -c.turn_rate_radps, c.turn_rate_radps))
-                self.step(min(c.go_speed_mps, 1.5 * along + 0.02), w)
+                if self.step(min(c.go_speed_mps, 1.5 * along + 0.02), w):
+                    break  # a wall is in the way: stop here
         self.rotate_to(target_odom.theta)
         self.step(0.0, 0.0)
 
@@ -506,10 +524,9 @@ def follow_route(
                 break
     except _SimTimeoutError:
         ok_all = False
-    last = graph.get_island(results[-1].target if results else route[0])
-    fin_m, fin_deg = _pose_error(_truth_in(last, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
-    reached = last.id == route[-1]
-    success = ok_all and reached and fin_m <= c.success_tol_m and fin_deg <= c.success_tol_deg
+    target = graph.get_island(route[-1])
+    fin_m, fin_deg = _pose_error(_truth_in(target, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
+    success = ok_all and fin_m <= c.success_tol_m and fin_deg <= c.success_tol_deg
     return RouteResult(tuple(route), tuple(results), fin_m, fin_deg, success, sim.t)
 
 
@@ -551,11 +568,9 @@ def follow_route_global_odometry(
             )
     except _SimTimeoutError:
         ok = False
-    last = graph.get_island(results[-1].target if results else route[0])
-    fin_m, fin_deg = _pose_error(_truth_in(last, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
-    success = (
-        ok and last.id == route[-1] and fin_m <= c.success_tol_m and fin_deg <= c.success_tol_deg
-    )
+    target = graph.get_island(route[-1])
+    fin_m, fin_deg = _pose_error(_truth_in(target, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
+    success = ok and fin_m <= c.success_tol_m and fin_deg <= c.success_tol_deg
     return RouteResult(tuple(route), tuple(results), fin_m, fin_deg, success, sim.t)
 
 
@@ -619,3 +634,202 @@ def evaluate_routes(
         pairs.append((a, b))
         del k
     return RouteEvaluation(tuple(pairs), tuple(isl), tuple(base))
+
+
+# ---------------------------------------------------------------------------------------------
+# Localization in the island the robot is near (the island_builder_node's localizer behaviour).
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Continuous localization in the nearest island while the robot is within its model."""
+
+    window_scans: int = field(
+        default=20, metadata={"help": "scans whose points (by odometry) are localized together [-]"}
+    )
+    every_n_scans: int = field(
+        default=5, metadata={"help": "localize on every n-th scan (CPU budget) [-]"}
+    )
+    max_extent_m: float = field(
+        default=8.0,
+        metadata={
+            "help": "an island counts as near within its model's extent (farthest "
+            "endpoint from its origin), capped at this [m]"
+        },
+    )
+    max_residual_m: float = field(
+        default=0.15, metadata={"help": "a localization with a larger RMS residual is ignored [m]"}
+    )
+    localize: LocalizeConfig = field(
+        default_factory=_point_to_line,
+        metadata={"help": "line-model localization (point-to-line Gauss-Newton)"},
+    )
+
+    def __post_init__(self) -> None:
+        if self.window_scans < 1 or self.every_n_scans < 1:
+            raise NavigateError("TrackerConfig: window_scans and every_n_scans must be >= 1")
+        if not (math.isfinite(self.max_extent_m) and self.max_extent_m > 0):
+            raise NavigateError(f"TrackerConfig.max_extent_m: must be > 0, got {self.max_extent_m}")
+
+
+@dataclass(frozen=True)
+class IslandFix:
+    """A localization in an island's frame: pose [m, rad], 3x3 covariance, the island."""
+
+    island_id: int
+    frame_id: str
+    pose: Pose2D
+    covariance: FloatArray
+    residual_m: float
+
+
+class IslandTracker:
+    """Localizes the robot in the island it is near, scan after scan, from odometry.
+
+    Each island's origin is known in the odometry frame when it is added (where it was built);
+    every trusted localization refines that placement, so the estimate follows the drift.
+    """
+
+    def __init__(self, config: TrackerConfig | None = None) -> None:
+        self.config = config if config is not None else TrackerConfig()
+        self._islands: dict[
+            int, tuple[Island, Pose2D, float]
+        ] = {}  # id -> (island, origin, extent)
+        self._window: list[FloatArray] = []  # recent scan points in the odometry frame [m]
+        self._count = 0
+        self.fixes = 0
+
+    def add_island(self, island: Island, origin_odom: Pose2D) -> None:
+        """An island and the odometry pose of its origin."""
+        seg = island.model.segments
+        ext = float(np.max(np.hypot(seg[:, [0, 2]], seg[:, [1, 3]]))) if len(seg) else 0.0
+        self._islands[island.id] = (island, origin_odom, min(ext, self.config.max_extent_m))
+
+    def origin_odom(self, island_id: int) -> Pose2D:
+        return self._islands[island_id][1]
+
+    def nearest(self, odom_pose: Pose2D) -> int | None:
+        """The island whose origin is nearest, if the robot is within that island's extent."""
+        best, best_d = None, math.inf
+        for i, (_, origin, ext) in self._islands.items():
+            d = math.hypot(odom_pose.x - origin.x, odom_pose.y - origin.y)
+            if d <= ext and d < best_d:
+                best, best_d = i, d
+        return best
+
+    def on_scan(
+        self, odom_pose: Pose2D, ranges_m: FloatArray, angles_rad: FloatArray
+    ) -> IslandFix | None:
+        """Add a scan (robot frame) at an odometry pose; a fix when one is due and trusted."""
+        a = np.asarray(angles_rad, dtype=np.float64) + odom_pose.theta
+        r = np.asarray(ranges_m, dtype=np.float64)
+        ok = np.isfinite(r) & np.isfinite(a)
+        pts = np.stack(
+            [odom_pose.x + r[ok] * np.cos(a[ok]), odom_pose.y + r[ok] * np.sin(a[ok])], axis=1
+        )
+        self._window.append(pts)
+        del self._window[: -self.config.window_scans]
+        self._count += 1
+        if self._count % self.config.every_n_scans:
+            return None
+        near = self.nearest(odom_pose)
+        if near is None:
+            return None
+        island, origin, ext = self._islands[near]
+        allp = np.concatenate(self._window, axis=0)
+        c, s = math.cos(odom_pose.theta), math.sin(odom_pose.theta)
+        d = allp - np.array([odom_pose.x, odom_pose.y])
+        robot_pts = np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
+        res = localize(island.model, robot_pts, odom_pose.relative_to(origin), self.config.localize)
+        if not res.converged or res.residual_m > self.config.max_residual_m:
+            return None
+        # Re-place the island origin in the odometry frame so the two agree now.
+        self._islands[near] = (island, odom_pose.compose(res.pose.inverse()), ext)
+        self.fixes += 1
+        var = max(res.residual_m, 0.01) ** 2 / max(res.constraint, 1e-3)
+        cov = np.diag([var, var, var / 4.0])  # heading var: residual over a ~2 m lever [rad^2]
+        return IslandFix(island.id, island.frame_id, res.pose, cov, res.residual_m)
+
+
+# ---------------------------------------------------------------------------------------------
+# Exploration without ROS: the same closed loop the nodes run (simulator, hall follower, builder).
+
+
+@dataclass(frozen=True)
+class ExplorationResult:
+    """What an exploration produced.
+
+    islands, edges: the map; origins_odom: each island origin's odometric pose when it was built
+    (for the global-odometry baseline); events: every builder event with its time; truth_path,
+    odom_path: (K, 3) poses [m, m, rad] at every scan; collisions: wall contacts of the robot.
+    """
+
+    islands: tuple[Island, ...]
+    edges: tuple[Edge, ...]
+    origins_odom: Mapping[int, Pose2D]
+    events: tuple[BuilderEvent, ...]
+    truth_path: FloatArray
+    odom_path: FloatArray
+    collisions: int
+
+    def graph(self) -> TopoGraph:
+        return TopoGraph.from_parts(self.islands, self.edges)
+
+
+def explore(
+    setup: SimSetup,
+    sim_s: float,
+    builder_cfg: BuilderConfig | None = None,
+    rng: np.random.Generator | None = None,
+    start: Pose2D | None = None,
+    physics_rate_hz: float = 50.0,
+    sensor_rate_hz: float = 10.0,
+) -> ExplorationResult:
+    """Explore `setup.world` for `sim_s` simulated seconds from `start` (default: the world's).
+
+    Per sensor period: a scan at the true pose; the builder decides; FOLLOW lets the hall
+    follower drive (its strategy feeds the builder), DRIVE pauses it and applies the builder's
+    twist; when an island is handed back the follower's strategy record restarts.
+    """
+    gen = rng if rng is not None else np.random.default_rng(0)
+    world = setup.world
+    robot = SimRobot(world, start or world.start_pose, gen, setup.robot, setup.odometry)
+    sonar = SonarModel(setup.sonar)
+    follower = HallFollower(setup.follower, np.random.default_rng(int(gen.integers(2**31))))
+    builder = IslandBuilder(builder_cfg)
+    steps = max(1, round(physics_rate_hz / sensor_rate_hz))
+    dt = 1.0 / physics_rate_hz
+    events: list[BuilderEvent] = []
+    truth, odom = [], []
+    builder.on_odometry(0.0, robot.odom_pose, robot.odom_covariance)
+    builder.on_ground_truth(robot.true_pose)
+    for _ in range(int(sim_s * sensor_rate_hz)):
+        t = robot.time_s
+        ranges = sonar.scan(world, robot.true_pose, gen)
+        builder.set_strategy(follower.strategy())
+        builder.on_scan(t, ranges, sonar.angles_rad)
+        cmd = builder.command(t)
+        events.extend(cmd.events)
+        if any(
+            e.kind is EventKind.HANDED_BACK and e.accepted_island_id is not None for e in cmd.events
+        ):
+            follower.reset_strategy()
+        follower.set_enabled(cmd.mode is CommandMode.FOLLOW)
+        v, w = follower.update(ranges, sonar.angles_rad, robot.odom_pose, t)
+        if cmd.mode is CommandMode.DRIVE:
+            v, w = cmd.v_mps, cmd.w_radps
+        truth.append(robot.true_pose.as_array())
+        odom.append(robot.odom_pose.as_array())
+        for _ in range(steps):
+            robot.step(v, w, dt)
+            builder.on_odometry(robot.time_s, robot.odom_pose, robot.odom_covariance)
+            builder.on_ground_truth(robot.true_pose)
+    return ExplorationResult(
+        tuple(builder.islands),
+        tuple(builder.edges),
+        dict(builder.island_origins_odom),
+        tuple(events),
+        np.array(truth).reshape(-1, 3),
+        np.array(odom).reshape(-1, 3),
+        robot.collisions,
+    )

@@ -1,0 +1,199 @@
+"""island_builder_node: builds islands of reliability while the hall follower explores (eq. 3).
+
+Subscribes  /odom                    nav_msgs/Odometry (pose + covariance: epsilon)
+            /sonar/scan              sensor_msgs/LaserScan
+            /hall_follower/strategy  std_msgs/String (latched), the executed strategy
+            /ground_truth            nav_msgs/Odometry, only to stamp islands' origin_truth
+Publishes   /cmd_vel                 geometry_msgs/Twist, one per scan while the builder drives
+            /island_builder/events   std_msgs/String, one JSON object per builder event
+Calls       /hall_follower/enable (SetBool), /hall_follower/reset (Trigger),
+            /topo_graph/add (rcl_interfaces/SetParameters: `island` and `edge` JSON strings)
+All service calls are asynchronous; the executor is never blocked. The decisions are in
+island_mapping.core.builder; localization in the islands is island_localizer_node.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections import OrderedDict, deque
+from collections.abc import Sequence
+from typing import Any
+
+import rclpy
+from geometry_msgs.msg import Twist
+from island_msgs_py.ros_params import declare_config, ensure_ros_env
+from island_msgs_py.types import ControlStrategy, IslandTypeError, Pose2D
+from island_sim.conversions import (
+    NS_PER_S,
+    ConversionError,
+    command_to_twist,
+    odometry_to_pose,
+    scan_to_arrays,
+)
+from nav_msgs.msg import Odometry
+from rcl_interfaces.srv import SetParameters
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import LaserScan
+from std_msgs.msg import String
+from std_srvs.srv import SetBool, Trigger
+
+from island_mapping.core import builder as core
+from island_mapping.core.builder import BuilderEvent, CommandMode, EventKind
+from island_msgs_py import conversions as cv
+
+NODE_NAME = "island_builder_node"
+WARN_THROTTLE_S = 2.0
+STREAM_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                        reliability=ReliabilityPolicy.RELIABLE)
+LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                     reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+ODOM_BUFFER = 200  # odometry stamps kept for pairing scans (4 s at 50 Hz)
+
+
+class IslandBuilderNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self.cfg = declare_config(self, "builder", core.BuilderConfig())
+        self.builder = core.IslandBuilder(self.cfg)
+        self.bad_msg_count = 0
+        self.follower_enabled = True  # confirmed state of the hall follower
+        self._enable_pending: bool | None = None
+        self._odom: OrderedDict[int, Pose2D] = OrderedDict()
+        self._pending: deque[tuple[int, Any, Any]] = deque()
+        self.cmd_pub = self.create_publisher(Twist, "/cmd_vel", STREAM_QOS)
+        self.event_pub = self.create_publisher(String, "/island_builder/events", STREAM_QOS)
+        self.create_subscription(Odometry, "/odom", self._on_odom, STREAM_QOS)
+        self.create_subscription(Odometry, "/ground_truth", self._on_truth, STREAM_QOS)
+        self.create_subscription(LaserScan, "/sonar/scan", self._on_scan, STREAM_QOS)
+        self.create_subscription(String, "/hall_follower/strategy", self._on_strategy, LATCHED)
+        self.enable_cli = self.create_client(SetBool, "/hall_follower/enable")
+        self.reset_cli = self.create_client(Trigger, "/hall_follower/reset")
+        self.add_cli = self.create_client(SetParameters, "/topo_graph/add")
+
+    def _warn(self, what: str, exc: Exception) -> None:
+        self.bad_msg_count += 1
+        self.get_logger().warn(f"ignored bad {what} ({self.bad_msg_count} so far): {exc}",
+                               throttle_duration_sec=WARN_THROTTLE_S)
+
+    # --- inputs: scans are processed with the odometry of the same stamp ----------------------
+    def _on_odom(self, msg: Odometry) -> None:
+        try:
+            pose, cov, t_ns = odometry_to_pose(msg)
+            self.builder.on_odometry(t_ns * 1e-9, pose, cov)
+        except (ConversionError, ValueError) as exc:
+            self._warn("/odom", exc)
+            return
+        self._odom[t_ns] = pose
+        while len(self._odom) > ODOM_BUFFER:
+            self._odom.popitem(last=False)
+        while self._pending and self._pending[0][0] <= t_ns:
+            self._process(*self._pending.popleft())
+
+    def _on_truth(self, msg: Odometry) -> None:
+        try:
+            self.builder.on_ground_truth(odometry_to_pose(msg)[0])
+        except ConversionError as exc:
+            self._warn("/ground_truth", exc)
+
+    def _on_strategy(self, msg: String) -> None:
+        try:
+            self.builder.set_strategy(ControlStrategy.parse(msg.data))
+        except IslandTypeError as exc:
+            self._warn("/hall_follower/strategy", exc)
+
+    def _on_scan(self, msg: LaserScan) -> None:
+        try:
+            ranges, angles = scan_to_arrays(msg)
+        except ConversionError as exc:
+            self._warn("/sonar/scan", exc)
+            return
+        t_ns = int(msg.header.stamp.sec) * NS_PER_S + int(msg.header.stamp.nanosec)
+        self._pending.append((t_ns, ranges, angles))
+        if self._odom and next(reversed(self._odom)) >= t_ns:
+            while self._pending and self._pending[0][0] <= t_ns:
+                self._process(*self._pending.popleft())
+
+    # --- one decision per scan ----------------------------------------------------------------
+    def _process(self, t_ns: int, ranges: Any, angles: Any) -> None:
+        t = t_ns * 1e-9
+        try:
+            self.builder.on_scan(t, ranges, angles)
+            cmd = self.builder.command(t)
+        except ValueError as exc:
+            self._warn("scan for the builder", exc)
+            return
+        for e in cmd.events:
+            self._handle_event(e)
+        if cmd.mode is CommandMode.DRIVE:
+            self._set_follower(False)
+            self.cmd_pub.publish(command_to_twist(cmd.v_mps, cmd.w_radps))
+        else:
+            if not self.follower_enabled:  # until it confirms, keep the lockstep fed
+                self.cmd_pub.publish(command_to_twist(0.0, 0.0))
+            if self._enable_pending is None and not self.follower_enabled:
+                self._set_follower(True)
+
+    def _handle_event(self, e: BuilderEvent) -> None:
+        self.event_pub.publish(String(data=json.dumps(core.event_to_dict(e))))
+        if e.kind is EventKind.ISLAND_ACCEPTED and e.island is not None:
+            self.get_logger().info(f"island {e.island.id} accepted ({e.island.model_type.value}, "
+                                   f"measure {e.measure:.2f} > bound {e.bound:.2f})")
+            req = SetParameters.Request()
+            req.parameters = [cv.island_to_parameter(e.island)]
+            if e.edge is not None:
+                req.parameters.append(cv.edge_to_parameter(e.edge))
+            self.add_cli.call_async(req).add_done_callback(self._on_added)
+        if e.kind is EventKind.HANDED_BACK and e.accepted_island_id is not None:
+            # At the new island's origin: the follower's record restarts here, then it resumes.
+            self._enable_pending = True
+            fut = self.reset_cli.call_async(Trigger.Request())
+            fut.add_done_callback(lambda _f: self._send_enable(True))
+
+    def _on_added(self, fut: Any) -> None:
+        res = fut.result()
+        for r in res.results if res is not None else []:
+            if not r.successful:
+                self.get_logger().warn(f"/topo_graph/add rejected an item: {r.reason}")
+
+    def _set_follower(self, enabled: bool) -> None:
+        if self._enable_pending == enabled or (
+            self._enable_pending is None and self.follower_enabled == enabled
+        ):
+            return
+        self._enable_pending = enabled
+        self._send_enable(enabled)
+
+    def _send_enable(self, enabled: bool) -> None:
+        fut = self.enable_cli.call_async(SetBool.Request(data=enabled))
+        fut.add_done_callback(lambda f: self._on_enabled(enabled, f))
+
+    def _on_enabled(self, enabled: bool, fut: Any) -> None:
+        if fut.result() is not None and fut.result().success:
+            self.follower_enabled = enabled
+        if self._enable_pending == enabled:
+            self._enable_pending = None
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    ensure_ros_env()
+    rclpy.init(args=args)
+    node = IslandBuilderNode()
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,138 @@
+"""island_localizer_node: while the robot is near an island, localizes it in the island's frame.
+
+Subscribes  /island_builder/events  std_msgs/String (JSON): `island_accepted` events give the
+                                    island (its line model) and its origin in the odometry frame
+            /odom                   nav_msgs/Odometry
+            /sonar/scan             sensor_msgs/LaserScan
+Publishes   /island_pose            geometry_msgs/PoseWithCovarianceStamped, frame_id = the
+                                    island's frame (`island_<id>`), stamped with the scan time
+Each scan is paired with the odometry of the same stamp. The logic is
+island_mapping.core.navigate.IslandTracker.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections import OrderedDict, deque
+from collections.abc import Sequence
+from typing import Any
+
+import rclpy
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from island_msgs_py.json_io import GraphFormatError
+from island_msgs_py.ros_params import declare_config, ensure_ros_env
+from island_msgs_py.types import IslandTypeError, Pose2D
+from island_sim.conversions import (
+    NS_PER_S,
+    ConversionError,
+    ns_to_time,
+    odometry_to_pose,
+    scan_to_arrays,
+)
+from nav_msgs.msg import Odometry
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import LaserScan
+from std_msgs.msg import String
+
+from island_mapping.core.navigate import IslandTracker, TrackerConfig
+from island_msgs_py import conversions as cv
+from island_msgs_py import json_io
+
+NODE_NAME = "island_localizer_node"
+WARN_THROTTLE_S = 2.0
+STREAM_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                        reliability=ReliabilityPolicy.RELIABLE)
+ODOM_BUFFER = 200  # odometry stamps kept for pairing scans (4 s at 50 Hz)
+
+
+class IslandLocalizerNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self.tracker = IslandTracker(declare_config(self, "tracker", TrackerConfig()))
+        self.bad_msg_count = 0
+        self.published = 0
+        self._odom: OrderedDict[int, Pose2D] = OrderedDict()
+        self._pending: deque[tuple[int, Any, Any]] = deque()
+        self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "/island_pose", 10)
+        self.create_subscription(String, "/island_builder/events", self._on_event, STREAM_QOS)
+        self.create_subscription(Odometry, "/odom", self._on_odom, STREAM_QOS)
+        self.create_subscription(LaserScan, "/sonar/scan", self._on_scan, STREAM_QOS)
+
+    def _warn(self, what: str, exc: Exception) -> None:
+        self.bad_msg_count += 1
+        self.get_logger().warn(f"ignored bad {what} ({self.bad_msg_count} so far): {exc}",
+                               throttle_duration_sec=WARN_THROTTLE_S)
+
+    def _on_event(self, msg: String) -> None:
+        try:
+            d = json.loads(msg.data)
+            if not isinstance(d, dict) or d.get("kind") != "island_accepted":
+                return
+            island = json_io.island_from_dict(d.get("island"), "event.island")
+            origin = json_io.pose_from_dict(d.get("anchor_odom"), "event.anchor_odom")
+        except (ValueError, GraphFormatError, IslandTypeError) as exc:
+            self._warn("/island_builder/events", exc)
+            return
+        self.tracker.add_island(island, origin)
+
+    def _on_odom(self, msg: Odometry) -> None:
+        try:
+            pose, _, t_ns = odometry_to_pose(msg)
+        except ConversionError as exc:
+            self._warn("/odom", exc)
+            return
+        self._odom[t_ns] = pose
+        while len(self._odom) > ODOM_BUFFER:
+            self._odom.popitem(last=False)
+        self._drain()
+
+    def _on_scan(self, msg: LaserScan) -> None:
+        try:
+            ranges, angles = scan_to_arrays(msg)
+        except ConversionError as exc:
+            self._warn("/sonar/scan", exc)
+            return
+        t_ns = int(msg.header.stamp.sec) * NS_PER_S + int(msg.header.stamp.nanosec)
+        self._pending.append((t_ns, ranges, angles))
+        self._drain()
+
+    def _drain(self) -> None:
+        newest = next(reversed(self._odom)) if self._odom else None
+        while self._pending and newest is not None and self._pending[0][0] <= newest:
+            t_ns, ranges, angles = self._pending.popleft()
+            older = [k for k in self._odom if k <= t_ns]
+            if not older:
+                continue
+            try:
+                fix = self.tracker.on_scan(self._odom[older[-1]], ranges, angles)
+            except ValueError as exc:
+                self._warn("scan for the localizer", exc)
+                continue
+            if fix is not None:
+                self.published += 1
+                self.pose_pub.publish(cv.pose2d_to_pose_with_covariance_stamped(
+                    fix.pose, fix.frame_id, fix.covariance, ns_to_time(t_ns)))
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    ensure_ros_env()
+    rclpy.init(args=args)
+    node = IslandLocalizerNode()
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
