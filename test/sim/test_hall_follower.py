@@ -279,3 +279,46 @@ def test_bad_input_and_configuration_are_named() -> None:
     v, w = follower.update(np.full(16, np.nan), np.linspace(0, 2 * np.pi, 16, endpoint=False),
                            Pose2D(0, 0, 0), 0.0)
     assert math.isfinite(v) and math.isfinite(w)
+
+
+def test_paper_fig3_with_the_random_policy_touches_no_wall() -> None:
+    from island_sim.core.world import load_world
+
+    follower = HallFollower(HallFollowerConfig(policy=TurnPolicy.RANDOM), np.random.default_rng(4))
+    run = simulate(load_world("paper_fig3"), follower, 300.0, seed=4)
+    assert run.robot.collisions == 0
+    assert run.min_clearance_m > 0.1
+    turns = [s for s in follower.strategy().steps if s.kind is PrimitiveKind.ROT]
+    assert len(turns) >= 4
+    assert run.robot.distance_m > 100.0
+
+
+def test_reset_in_the_middle_of_a_turn_keeps_only_the_rest_of_it() -> None:
+    world = loop_world()
+    sonar = SonarModel(SonarConfig(ideal=True))
+    rng = np.random.default_rng(0)
+    robot = SimRobot(world, world.start_pose, rng, odometry=OdometryConfig.exact())
+    follower = HallFollower(HallFollowerConfig(policy=TurnPolicy.RIGHT_HAND))
+    v = w = 0.0
+    reset_at: float | None = None
+    turn_start: float | None = None
+    for k in range(2000):
+        if k % STEPS_PER_SCAN == 0:
+            r = sonar.scan(world, robot.true_pose, rng)
+            v, w = follower.update(r, sonar.angles_rad, robot.odom_pose, robot.time_s)
+            if turn_start is None and follower.state is FollowerState.TURN and abs(w) > 0.5:
+                turn_start = robot.odom_pose.theta
+            turned = turn_start is not None and abs(robot.odom_pose.theta - turn_start) > 0.5
+            if reset_at is None and turned:
+                follower.reset_strategy()
+                reset_at = robot.odom_pose.theta
+                assert str(follower.strategy()) == ""
+            if reset_at is not None and follower.state is FollowerState.FOLLOW:
+                break
+        robot.step(v, w, DT_S)
+    assert reset_at is not None
+    steps = follower.strategy().steps
+    assert steps[0].kind is PrimitiveKind.ROT
+    rest_deg = math.degrees(abs(robot.odom_pose.theta - reset_at))
+    assert 360 - steps[0].value == pytest.approx(rest_deg, abs=3.0)  # a right turn: CW
+    assert 10 < rest_deg < 65  # only what remained of the quarter turn
