@@ -1,0 +1,167 @@
+"""islands explore: the main job (paper section 8.2).
+
+Runs every node in one process on simulated time (robot, sonar, hall follower, island builder,
+island localizer, topological graph server, recorder), then writes to --out:
+
+  graph.json, graph.geojson, graph.graphml   the map M = {V, E} (Nav2 Route Server GeoJSON)
+  exploration.png                            path and island attempts, like Fig. 4a
+  topology.png                               island line models in their own frames, Fig. 4b
+  strategies.txt                             the links' control strategies, like Table 1
+  run_bag/                                   the MCAP recording of every topic (rosbag2 layout)
+  summary.json                               counts, true island origins, where islands landed,
+                                             route-following success vs global odometry
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from island_msgs_py.json_io import atomic_write_text, pose_from_dict, pose_to_dict
+from island_msgs_py.types import Pose2D
+from island_sim.core.world import WorldError, load_world
+
+from island_mapping.cli import CliError
+from island_mapping.cli.fig3 import ProgressBar
+from island_mapping.core.graph import TopoGraph
+from island_mapping.core.navigate import NavigateError, SimSetup, evaluate_routes
+from island_mapping.core.placement import PlaceKind, classify_place, placement_counts
+
+PROGRESS_STEPS = 1000
+"""Resolution of the progress bar (per mille of the simulated duration)."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.description = __doc__
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.add_argument("--world", default="paper_fig4", help="world file or built-in name")
+    parser.add_argument("--out", required=True, help="output directory (created)")
+    parser.add_argument("--seed", type=int, default=1, help="seed of every simulated noise")
+    parser.add_argument("--sim-seconds", type=float, default=900.0,
+                        help="simulated exploration time [s] (default 900)")
+    parser.add_argument("--routes", type=int, default=20,
+                        help="random island pairs for the route-following evaluation (0 = skip)")
+    parser.add_argument("--no-record", action="store_true", help="do not write run_bag/")
+    parser.add_argument("--wall-timeout", type=float, default=3600.0,
+                        help="give up after this much wall time [s]")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _origins_odom(events: list[dict[str, Any]]) -> dict[int, Pose2D]:
+    """Each accepted island's origin in the odometry frame, from the builder's events."""
+    out: dict[int, Pose2D] = {}
+    for e in events:
+        if e.get("kind") == "island_accepted" and e.get("anchor_odom") and e.get("island"):
+            out[int(e["island"]["id"])] = pose_from_dict(e["anchor_odom"])
+    return out
+
+
+def _counts(events: list[dict[str, Any]]) -> dict[str, int]:
+    kinds = [e.get("kind") for e in events]
+    return {
+        "attempts": kinds.count("attempt_started") + kinds.count("attempt_failed_at_once"),
+        "stars_started": kinds.count("attempt_started"),
+        "failed_at_once": kinds.count("attempt_failed_at_once"),
+        "accepted": kinds.count("island_accepted"),
+        "dismissed": kinds.count("attempt_dismissed"),
+    }
+
+
+def _route_summary(graph: TopoGraph, world: Any, events: list[dict[str, Any]], n_pairs: int,
+                   seed: int) -> dict[str, Any]:
+    if n_pairs <= 0:
+        return {"skipped": "--routes 0"}
+    try:
+        ev = evaluate_routes(graph, SimSetup(world=world), n_pairs,
+                             np.random.default_rng(seed), _origins_odom(events))
+    except NavigateError as exc:
+        return {"skipped": str(exc)}
+    return {
+        "pairs": len(ev.pairs),
+        "islands_success_rate": ev.islands_success_rate,
+        "global_odometry_success_rate": ev.baseline_success_rate,
+        "per_route": [
+            {"source": a, "target": b, "islands_success": r.success,
+             "global_odometry_success": base.success}
+            for (a, b), r, base in zip(ev.pairs, ev.islands, ev.baseline, strict=True)
+        ],
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    from island_mapping.runner import RunConfig, RunError
+    from island_mapping.runner import run as run_nodes
+    from island_mapping.viz.explore import exploration_figure, strategies_table, topology_figure
+
+    try:
+        world = load_world(args.world)
+    except WorldError as exc:
+        raise CliError(str(exc)) from None
+    if not args.sim_seconds > 0:
+        raise CliError(f"--sim-seconds must be > 0, got {args.sim_seconds}")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    bag_dir = out / "run_bag"
+    if bag_dir.exists() and not args.no_record:
+        raise CliError(f"{bag_dir} exists: choose another --out or remove it")
+    bar = None if args.quiet else ProgressBar(f"explore {world.name}")
+    progress = None if bar is None else (
+        lambda frac: bar(round(frac * PROGRESS_STEPS), PROGRESS_STEPS))
+    cfg = RunConfig(world=args.world, seed=args.seed, sim_seconds=args.sim_seconds,
+                    record_dir="" if args.no_record else str(bag_dir),
+                    wall_timeout_s=args.wall_timeout)
+    try:
+        rec = run_nodes(cfg, progress)
+    except RunError as exc:
+        print(f"islands explore: {exc}", file=sys.stderr)
+        return 1
+    graph = rec.graph
+    graph.save_all(out)
+    title = f"{world.name}, seed {args.seed}, {rec.sim_seconds:.0f} s"
+    exploration_figure(world.segments, rec.truth_path, rec.events, out / "exploration.png",
+                       title=f"Exploration: {title} (cf. paper Fig. 4a)")
+    topology_figure(graph, out / "topology.png",
+                    title=f"Islands of reliability: {title} (cf. paper Fig. 4b)")
+    atomic_write_text(out / "strategies.txt", strategies_table(graph))
+    t0 = time.monotonic()
+    routes = _route_summary(graph, world, rec.events, args.routes, args.seed)
+    origins = {i.id: i.origin_truth for i in graph.islands() if i.origin_truth is not None}
+    summary = {
+        "world": world.name,
+        "seed": args.seed,
+        "sim_seconds": rec.sim_seconds,
+        "wall_seconds": round(rec.wall_seconds, 2),
+        "real_time_factor": round(rec.real_time_factor, 2),
+        "route_eval_wall_seconds": round(time.monotonic() - t0, 2),
+        **_counts(rec.events),
+        "islands": len(graph),
+        "edges": len(graph.edges()),
+        "collisions": rec.collisions,
+        "lockstep_timeouts": rec.lockstep_timeouts,
+        "island_origins_truth": {str(k): pose_to_dict(v) for k, v in origins.items()},
+        "island_places": {
+            str(k): classify_place(world.segments, v.x, v.y).value for k, v in origins.items()
+        },
+        "placement_counts": placement_counts(world.segments, origins.values()),
+        "plain_hallway_islands": sum(
+            classify_place(world.segments, v.x, v.y) is PlaceKind.PLAIN_HALLWAY
+            for v in origins.values()
+        ),
+        "routes": routes,
+        "bag": str(rec.bag_dir) if rec.bag_dir is not None else None,
+    }
+    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    print(json.dumps({k: summary[k] for k in (
+        "world", "sim_seconds", "real_time_factor", "attempts", "accepted", "dismissed",
+        "failed_at_once", "islands", "edges", "plain_hallway_islands", "collisions")}))
+    if isinstance(routes.get("islands_success_rate"), float):
+        print(f"routes: islands {routes['islands_success_rate']:.0%}, "
+              f"global odometry {routes['global_odometry_success_rate']:.0%} "
+              f"over {routes['pairs']} pairs")
+    print(f"results in {out}/")
+    return 0

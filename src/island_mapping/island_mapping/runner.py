@@ -1,0 +1,212 @@
+"""Every node of the system in one process on one executor, on simulated time.
+
+This is what `islands explore` runs: odometry_node (the robot; it owns /clock and steps in
+lockstep with the controller so a seed fixes the run), sonar_node, hall_follower_node,
+island_builder_node, island_localizer_node and topo_graph_server_node, plus a RunRecorder that
+writes every topic to a rosbag2 MCAP directory, and an observer that keeps what the figures and
+the summary need (true and odometric paths, builder events).
+
+The nodes talk only over their topics and services, exactly as they do when started one by one
+with `ros2 run`; this module only creates them with parameter overrides and spins.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rclpy
+from island_msgs_py.ros_params import ensure_ros_env
+from island_msgs_py.types import FloatArray
+from island_sim.conversions import odometry_to_pose
+from island_sim.nodes.hall_follower_node import HallFollowerNode
+from island_sim.nodes.odometry_node import OdometryNode
+from island_sim.nodes.sonar_node import SonarNode
+from nav_msgs.msg import Odometry
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile
+from std_msgs.msg import String
+
+from island_mapping.bag.recorder import RunRecorder
+from island_mapping.core.graph import TopoGraph
+from island_mapping.nodes.island_builder_node import IslandBuilderNode
+from island_mapping.nodes.island_localizer_node import IslandLocalizerNode
+from island_mapping.nodes.topo_graph_server_node import TopoGraphServerNode
+
+OBSERVER_QOS = QoSProfile(depth=1000)
+"""Deep enough that a burst of ground truth between two spins is never dropped."""
+RECORDER_MATCH_WAIT_S = 5.0
+"""Wall time to wait for the recorder to match the run's publishers before the clock starts."""
+RECORDED_TOPICS_REQUIRED = ("/odom", "/ground_truth", "/sonar/scan", "/cmd_vel", "/clock")
+
+
+class RunError(RuntimeError):
+    """The in-process run could not be set up or did not finish."""
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """One in-process run (the defaults are the README's main job)."""
+
+    world: str = field(default="paper_fig4", metadata={"help": "built-in world or world file"})
+    seed: int = field(default=1, metadata={"help": "seed of all simulated noise [-]"})
+    sim_seconds: float = field(default=900.0, metadata={"help": "simulated duration [s]"})
+    record_dir: str = field(default="", metadata={"help": "MCAP output directory; empty = none"})
+    wall_timeout_s: float = field(
+        default=3600.0, metadata={"help": "give up after this much wall time [s]"}
+    )
+    params: dict[str, dict[str, Any]] = field(
+        default_factory=dict,
+        metadata={"help": "extra parameter overrides per node name, e.g. {'odometry_node': {...}}"},
+    )
+
+
+@dataclass
+class RunRecord:
+    """What the observer saw. Paths are (K, 4) rows (t [s], x [m], y [m], theta [rad])."""
+
+    truth_path: FloatArray
+    odom_path: FloatArray
+    events: list[dict[str, Any]]
+    graph: TopoGraph
+    sim_seconds: float
+    wall_seconds: float
+    collisions: int
+    lockstep_timeouts: int
+    bag_dir: Path | None
+
+    @property
+    def real_time_factor(self) -> float:
+        return self.sim_seconds / self.wall_seconds if self.wall_seconds > 0 else float("inf")
+
+
+class _Observer(Node):
+    """Keeps the true and odometric paths and the builder events (subscribes like any client)."""
+
+    def __init__(self, context: Context) -> None:
+        super().__init__("islands_run_observer", context=context)
+        self.truth: list[tuple[float, float, float, float]] = []
+        self.odom: list[tuple[float, float, float, float]] = []
+        self.events: list[dict[str, Any]] = []
+        self.create_subscription(Odometry, "/ground_truth", self._on_truth, OBSERVER_QOS)
+        self.create_subscription(Odometry, "/odom", self._on_odom, OBSERVER_QOS)
+        self.create_subscription(String, "/island_builder/events", self._on_event, OBSERVER_QOS)
+
+    @staticmethod
+    def _row(msg: Odometry) -> tuple[float, float, float, float]:
+        pose, _cov, stamp_ns = odometry_to_pose(msg)
+        return (stamp_ns * 1e-9, pose.x, pose.y, pose.theta)
+
+    def _on_truth(self, msg: Odometry) -> None:
+        self.truth.append(self._row(msg))
+
+    def _on_odom(self, msg: Odometry) -> None:
+        self.odom.append(self._row(msg))
+
+    def _on_event(self, msg: String) -> None:
+        try:
+            event = json.loads(msg.data)
+        except json.JSONDecodeError:
+            self.get_logger().warn("builder event is not JSON; ignored")
+            return
+        if self.truth:  # where the robot really was (evaluation and figures only)
+            event["truth_pose"] = dict(zip(("x", "y", "theta"), self.truth[-1][1:], strict=True))
+        self.events.append(event)
+
+
+def _overrides(base: dict[str, Any], extra: dict[str, Any] | None) -> list[Parameter]:
+    merged = {**base, **(extra or {})}
+    return [Parameter(k, value=v) for k, v in merged.items()]
+
+
+def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunRecord:
+    """Run every node in one process until `cfg.sim_seconds` of simulated time have passed."""
+    ensure_ros_env()
+    ctx = Context()
+    rclpy.init(context=ctx)
+    nodes: list[Node] = []
+    recorder: RunRecorder | None = None
+    executor = SingleThreadedExecutor(context=ctx)
+    try:
+        sim_time = {"use_sim_time": True}
+        p = cfg.params
+        odo = OdometryNode(context=ctx, parameter_overrides=_overrides({
+            "world": cfg.world, "seed": cfg.seed, "sim.real_time_factor": 0.0,
+            "sim.lockstep": True, "sim.stop_after_s": float(cfg.sim_seconds),
+        }, p.get("odometry_node")))
+        sonar = SonarNode(context=ctx, parameter_overrides=_overrides(
+            {**sim_time, "world": cfg.world, "seed": cfg.seed + 1}, p.get("sonar_node")))
+        follower = HallFollowerNode(context=ctx, parameter_overrides=_overrides(
+            {**sim_time, "seed": cfg.seed + 2}, p.get("hall_follower_node")))
+        builder = IslandBuilderNode(context=ctx, parameter_overrides=_overrides(
+            sim_time, p.get("island_builder_node")))
+        localizer = IslandLocalizerNode(context=ctx, parameter_overrides=_overrides(
+            sim_time, p.get("island_localizer_node")))
+        server = TopoGraphServerNode(context=ctx, parameter_overrides=_overrides(
+            {**sim_time, "storage_path": ""}, p.get("topo_graph_server_node")))
+        observer = _Observer(ctx)
+        nodes = [odo, sonar, follower, builder, localizer, server, observer]
+        # The recorder matches every publisher before the simulation may take its first step.
+        executor.add_node(observer)
+        if cfg.record_dir:
+            recorder = RunRecorder(observer, cfg.record_dir)
+            _wait_for_recorder(executor, recorder)
+        for n in nodes[:-1]:
+            executor.add_node(n)
+        wall0 = time.monotonic()
+        last_report = -1.0
+        while not odo.finished:
+            if time.monotonic() - wall0 > cfg.wall_timeout_s:
+                raise RunError(
+                    f"run did not reach {cfg.sim_seconds:.0f} s of sim time within "
+                    f"{cfg.wall_timeout_s:.0f} s wall (at {odo.sim_time_ns * 1e-9:.0f} s)"
+                )
+            executor.spin_once(timeout_sec=0.05)
+            t_sim = odo.sim_time_ns * 1e-9
+            if progress is not None and t_sim - last_report >= 1.0:
+                last_report = t_sim
+                progress(min(1.0, t_sim / cfg.sim_seconds))
+        # Let the last messages and the builder's final service calls arrive.
+        settle = time.monotonic() + 0.5
+        while time.monotonic() < settle:
+            executor.spin_once(timeout_sec=0.02)
+        wall = time.monotonic() - wall0
+        if progress is not None:
+            progress(1.0)
+        return RunRecord(
+            truth_path=np.asarray(observer.truth, dtype=np.float64).reshape(-1, 4),
+            odom_path=np.asarray(observer.odom, dtype=np.float64).reshape(-1, 4),
+            events=list(observer.events),
+            graph=server.graph,
+            sim_seconds=odo.sim_time_ns * 1e-9,
+            wall_seconds=wall,
+            collisions=int(odo.robot.collisions),
+            lockstep_timeouts=int(odo.lockstep_timeouts),
+            bag_dir=recorder.path if recorder is not None else None,
+        )
+    finally:
+        if recorder is not None:
+            recorder.close()
+        executor.shutdown()
+        for n in nodes:
+            n.destroy_node()
+        ctx.try_shutdown()
+
+
+def _wait_for_recorder(executor: SingleThreadedExecutor, recorder: RunRecorder) -> None:
+    """Spin until the recorder has matched the publishers whose first messages matter."""
+    deadline = time.monotonic() + RECORDER_MATCH_WAIT_S
+    while time.monotonic() < deadline:
+        recorder.rescan()
+        matched = recorder.matched_publishers()
+        if all(matched.get(t, 0) > 0 for t in RECORDED_TOPICS_REQUIRED):
+            return
+        executor.spin_once(timeout_sec=0.05)

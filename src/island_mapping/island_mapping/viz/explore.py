@@ -1,0 +1,152 @@
+"""Figures of an exploration run, like the paper's Fig. 4a (path and attempts) and Fig. 4b
+(the topological-metric map: each island's line model in its own frame, laid out for clarity).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import networkx as nx
+import numpy as np
+from island_msgs_py.types import FloatArray
+from matplotlib.figure import Figure
+
+from island_mapping.core.graph import TopoGraph
+from island_mapping.viz import save_figure
+
+WALL_COLOUR = "0.55"
+ACCEPTED_COLOUR = "tab:green"
+DISMISSED_COLOUR = "tab:orange"
+FAILED_COLOUR = "tab:red"
+DPI = 130
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    return save_figure(fig, path, dpi=DPI)
+
+
+def _draw_walls(ax: Any, segments: FloatArray) -> None:
+    for x1, y1, x2, y2 in segments:
+        ax.plot([x1, x2], [y1, y2], color=WALL_COLOUR, lw=1.0, solid_capstyle="butt")
+
+
+def _attempt_windows(events: Sequence[dict[str, Any]]) -> list[tuple[float, float, str]]:
+    """(t_start, t_end, outcome) of each star attempt: 'accepted' or 'dismissed'."""
+    out: list[tuple[float, float, str]] = []
+    start: float | None = None
+    outcome = ""
+    for e in events:
+        kind = e.get("kind")
+        t = float(e.get("t_s", 0.0))
+        if kind == "attempt_started":
+            start, outcome = t, ""
+        elif kind == "island_accepted":
+            outcome = "accepted"
+        elif kind == "attempt_dismissed":
+            outcome = "dismissed"
+        elif kind == "handed_back" and start is not None:
+            out.append((start, t, outcome or "dismissed"))
+            start = None
+        if kind == "attempt_failed_at_once":
+            start = None
+    return out
+
+
+def exploration_figure(
+    segments: FloatArray,
+    truth_path: FloatArray,
+    events: Sequence[dict[str, Any]],
+    path: Path,
+    title: str = "",
+) -> Path:
+    """Fig. 4a: world walls, the true path, dots where an attempt failed at once, full stars
+    (green) where an island was built, partial stars (orange) where an attempt was dismissed.
+    `truth_path` rows are (t [s], x [m], y [m], theta [rad])."""
+    fig, ax = plt.subplots(figsize=(10, 7))
+    _draw_walls(ax, segments)
+    if truth_path.shape[0]:
+        ax.plot(truth_path[:, 1], truth_path[:, 2], color="tab:blue", lw=0.6, alpha=0.6,
+                label="path (ground truth)")
+    t = truth_path[:, 0] if truth_path.shape[0] else np.zeros(0)
+    for t0, t1, outcome in _attempt_windows(events):
+        sel = (t >= t0) & (t <= t1)
+        colour = ACCEPTED_COLOUR if outcome == "accepted" else DISMISSED_COLOUR
+        ax.plot(truth_path[sel, 1], truth_path[sel, 2], color=colour, lw=1.6)
+    failed = [e["truth_pose"] for e in events
+              if e.get("kind") == "attempt_failed_at_once" and "truth_pose" in e]
+    if failed:
+        ax.scatter([p["x"] for p in failed], [p["y"] for p in failed], s=28, color=FAILED_COLOUR,
+                   zorder=5, label="attempt failed at once")
+    for e in events:
+        if e.get("kind") == "island_accepted" and e.get("island", {}).get("origin_truth"):
+            o = e["island"]["origin_truth"]
+            ax.scatter([o["x"]], [o["y"]], s=60, marker="*", color="k", zorder=6)
+            ax.annotate(str(e["island"]["id"]), (o["x"], o["y"]), xytext=(4, 4),
+                        textcoords="offset points", fontsize=8)
+    ax.plot([], [], color=ACCEPTED_COLOUR, lw=1.6, label="full star: island built")
+    ax.plot([], [], color=DISMISSED_COLOUR, lw=1.6, label="partial star: dismissed")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(title or "Exploration path and island attempts (cf. paper Fig. 4a)")
+    ax.legend(loc="upper right", fontsize=7, framealpha=0.85)
+    return _save(fig, path)
+
+
+def _layout(graph: TopoGraph, spacing_m: float) -> dict[int, tuple[float, float]]:
+    """Display positions of the islands: true origins when known (display only), else a
+    Kamada-Kawai layout of the topology. There is no global frame; this is for clarity only."""
+    islands = graph.islands()
+    if islands and all(i.origin_truth is not None for i in islands):
+        return {i.id: (i.origin_truth.x, i.origin_truth.y) for i in islands}  # type: ignore[union-attr]
+    g = nx.Graph()
+    g.add_nodes_from(i.id for i in islands)
+    g.add_edges_from((e.source, e.target) for e in graph.iter_edges())
+    if g.number_of_nodes() == 0:
+        return {}
+    pos = nx.kamada_kawai_layout(g) if g.number_of_nodes() > 1 else {islands[0].id: (0.0, 0.0)}
+    return {k: (float(v[0]) * spacing_m * 3, float(v[1]) * spacing_m * 3) for k, v in pos.items()}
+
+
+def topology_figure(graph: TopoGraph, path: Path, title: str = "") -> Path:
+    """Fig. 4b: every island's line model drawn in its own frame (x axis = the island's heading
+    0), placed at a display position, with the links numbered as in strategies.txt."""
+    fig, ax = plt.subplots(figsize=(10, 7))
+    extent = max([float(np.abs(i.model.segments).max()) if len(i.model) else 1.0
+                  for i in graph.islands()] or [1.0])
+    pos = _layout(graph, spacing_m=extent)
+    for k, e in enumerate(graph.edges()):
+        if e.source in pos and e.target in pos:
+            (x0, y0), (x1, y1) = pos[e.source], pos[e.target]
+            ax.annotate("", xy=(x1, y1), xytext=(x0, y0),
+                        arrowprops={"arrowstyle": "->", "color": "0.4", "lw": 0.8})
+            ax.text((x0 + x1) / 2, (y0 + y1) / 2, f"L{k}", fontsize=7, color="0.25")
+    for isl in graph.islands():
+        x, y = pos[isl.id]
+        for x1, y1, x2, y2 in isl.model.segments:
+            ax.plot([x + x1, x + x2], [y + y1, y + y2], color="k", lw=1.0)
+        ax.scatter([x], [y], s=25, color="tab:red", zorder=5)
+        ax.arrow(x, y, 0.8, 0.0, width=0.05, color="tab:red", length_includes_head=True)
+        ax.annotate(f"{isl.id} ({isl.model_type.value}, {isl.r:.2f})", (x, y), xytext=(4, -10),
+                    textcoords="offset points", fontsize=7)
+    ax.set_aspect("equal")
+    ax.set_xlabel("display x [m] (each island in its own frame; no global frame)")
+    ax.set_ylabel("display y [m]")
+    ax.set_title(title or "Topological-metric map: islands of reliability (cf. paper Fig. 4b)")
+    return _save(fig, path)
+
+
+def strategies_table(graph: TopoGraph) -> str:
+    """Table 1 of the paper: one line per link with its control strategy."""
+    lines = ["Link\tFrom\tTo\tLength [m]\tWeight\tControl Strategies"]
+    for k, e in enumerate(graph.edges()):
+        lines.append(
+            f"{k}\t{e.source}\t{e.target}\t{e.length_m:.2f}\t{e.weight:.2f}\t{e.strategy}"
+        )
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,38 @@
+"""The geometric check of where islands land (evaluation only)."""
+
+from __future__ import annotations
+
+import numpy as np
+from island_msgs_py.types import Pose2D
+from island_sim.core.world import load_world
+
+from island_mapping.core.placement import PlaceKind, classify_place, placement_counts
+
+CORRIDOR = np.array([[0.0, 0.0, 20.0, 0.0], [0.0, 2.0, 20.0, 2.0]])
+
+
+def test_middle_of_a_long_corridor_is_a_plain_hallway() -> None:
+    assert classify_place(CORRIDOR, 10.0, 1.0) is PlaceKind.PLAIN_HALLWAY
+
+
+def test_a_wall_across_the_corridor_makes_a_feature_only_when_visible() -> None:
+    closed = np.vstack([CORRIDOR, [[20.0, 0.0, 20.0, 2.0]]])
+    assert classify_place(closed, 19.0, 1.0) is PlaceKind.FEATURE
+    assert classify_place(closed, 10.0, 1.0) is PlaceKind.PLAIN_HALLWAY  # 10 m away
+    # A cross wall hidden behind the corridor wall does not count.
+    hidden = np.vstack([CORRIDOR, [[9.5, 2.5, 9.5, 4.0]]])
+    assert classify_place(hidden, 10.0, 1.0) is PlaceKind.PLAIN_HALLWAY
+
+
+def test_far_from_every_wall_is_open_space() -> None:
+    assert classify_place(CORRIDOR, 10.0, 30.0) is PlaceKind.OPEN_SPACE
+    assert classify_place(np.zeros((0, 4)), 0.0, 0.0) is PlaceKind.OPEN_SPACE
+
+
+def test_paper_fig4_junction_and_hallway() -> None:
+    world = load_world("paper_fig4")
+    # South corridor (y 8..10): x = 28 lies between doors; x = 9 is the west junction.
+    assert classify_place(world.segments, 28.0, 9.0) is PlaceKind.PLAIN_HALLWAY
+    assert classify_place(world.segments, 9.0, 9.0) is PlaceKind.FEATURE
+    counts = placement_counts(world.segments, [Pose2D(28.0, 9.0, 0.0), Pose2D(9.0, 9.0, 0.0)])
+    assert counts == {"plain_hallway": 1, "feature": 1, "open_space": 0}
