@@ -6,11 +6,10 @@ import json
 from pathlib import Path
 
 import pytest
-from island_msgs_py.json_io import load_graph_json
-
 from island_mapping.bag.reader import open_bag
 from island_mapping.cli import main
 from island_mapping.core.graph import TopoGraph
+from island_msgs_py.json_io import load_graph_json
 
 
 @pytest.mark.slow

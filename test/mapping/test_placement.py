@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+from island_mapping.core.placement import PlaceKind, classify_place, placement_counts
 from island_msgs_py.types import Pose2D
 from island_sim.core.world import load_world
-
-from island_mapping.core.placement import PlaceKind, classify_place, placement_counts
 
 CORRIDOR = np.array([[0.0, 0.0, 20.0, 0.0], [0.0, 2.0, 20.0, 2.0]])
 
@@ -31,8 +30,8 @@ def test_far_from_every_wall_is_open_space() -> None:
 
 def test_paper_fig4_junction_and_hallway() -> None:
     world = load_world("paper_fig4")
-    # South corridor (y 8..10): x = 28 lies between doors; x = 9 is the west junction.
-    assert classify_place(world.segments, 28.0, 9.0) is PlaceKind.PLAIN_HALLWAY
+    # South corridor (y 8..10): x = 21 lies between doors; x = 9 is the west junction.
+    assert classify_place(world.segments, 21.0, 9.0) is PlaceKind.PLAIN_HALLWAY
     assert classify_place(world.segments, 9.0, 9.0) is PlaceKind.FEATURE
-    counts = placement_counts(world.segments, [Pose2D(28.0, 9.0, 0.0), Pose2D(9.0, 9.0, 0.0)])
+    counts = placement_counts(world.segments, [Pose2D(21.0, 9.0, 0.0), Pose2D(9.0, 9.0, 0.0)])
     assert counts == {"plain_hallway": 1, "feature": 1, "open_space": 0}

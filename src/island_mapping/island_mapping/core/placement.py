@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 
 import numpy as np
-
 from island_msgs_py.types import FloatArray, Pose2D
 from island_sim.core.world import raycast
 
