@@ -63,7 +63,9 @@ class HallFollowerNodeConfig:
 
     seed: int = field(default=0, metadata={"help": "seed of the random turn policy [-]"})
     odom_buffer: int = field(
-        default=200, metadata={"help": "odometry messages kept for pairing with scans [-]"}
+        default=200,
+        metadata={"help": "odometry messages kept for pairing with scans, and scans kept "
+                  "waiting for their odometry [-]"},
     )
     follower: HallFollowerConfig = field(default_factory=HallFollowerConfig)
 
@@ -111,6 +113,9 @@ class HallFollowerNode(Node):
             return
         t_ns = int(msg.header.stamp.sec) * NS_PER_S + int(msg.header.stamp.nanosec)
         self._pending.append((t_ns, ranges, angles))
+        if len(self._pending) > self.cfg.odom_buffer:  # no odometry is arriving at all
+            dropped, _, _ = self._pending.popleft()
+            self._warn("/sonar/scan", ValueError(f"no odometry for the scan at {dropped} ns"))
         self._drain(newest_ns=next(reversed(self._odom)) if self._odom else None)
 
     def _drain(self, newest_ns: int | None) -> None:

@@ -10,7 +10,9 @@ the wall clock only decides WHEN to step, every step is one fixed `1 / sim.physi
 Lockstep (`sim.lockstep`): at every sensor period boundary, after publishing that instant, the
 robot waits until it has received that period's /cmd_vel (counted) before stepping on, so a
 seed gives one trajectory regardless of DDS timing; after `sim.lockstep_timeout_s` of wall time
-without it, it logs and steps on with the last command.
+without it, it logs and steps on with the last command (and counts that period as answered).
+A paused hall follower publishes nothing, so in lockstep whoever drives the robot meanwhile
+must publish one /cmd_vel per sensor period, or each period waits for the timeout.
 """
 
 from __future__ import annotations
