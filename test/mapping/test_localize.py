@@ -138,3 +138,34 @@ def test_bad_config_and_points_are_named() -> None:
         LocalizeConfig(solver="newton")  # type: ignore[arg-type]
     with pytest.raises(LocalizeError, match="points_robot"):
         localize(ROOM, np.zeros((3, 3)), Pose2D(0, 0, 0))
+
+
+def test_cone_aware_sonar_localization_recovers_an_offset_that_axis_points_miss() -> None:
+    from island_mapping.core.localize import SonarBeams, localize_sonar
+
+    rng = np.random.default_rng(21)
+    sonar = SonarModel()  # 25 deg cones, specular loss, 1 cm noise
+    world = World(ROOM)
+    truth = Pose2D(-0.6, 0.5, 0.3)
+    turns = np.radians([0.0, 5.625, 11.25, 16.875])
+    ranges = np.concatenate([sonar.scan(world, Pose2D(truth.x, truth.y, truth.theta + t), rng)
+                             for t in turns])
+    beams = SonarBeams(
+        axis_rad=np.concatenate([sonar.angles_rad + t for t in turns]),
+        cone_offsets_rad=sonar.ray_offsets_rad,
+        ring_radius_m=sonar.config.ring_radius_m,
+        reflect_deg=sonar.config.reflect_deg,
+        range_min_m=sonar.config.range_min_m,
+        range_max_m=sonar.config.range_max_m,
+    )
+    start = Pose2D(truth.x + 0.1, truth.y - 0.05, truth.theta)
+    cfg = LocalizeConfig(estimate_heading=False)
+    aware = localize_sonar(ROOM, ranges, beams, start, cfg)
+    assert aware.converged
+    err_aware = math.hypot(aware.pose.x - truth.x, aware.pose.y - truth.y)
+    assert err_aware < 0.01
+    pts = ranges_to_points(ranges, beams.axis_rad)
+    axis = localize(ROOM, pts, start, cfg)
+    assert math.hypot(axis.pose.x - truth.x, axis.pose.y - truth.y) > 2 * err_aware
+    with pytest.raises(LocalizeError, match="beams"):
+        localize_sonar(ROOM, ranges[:5], beams, start, cfg)
