@@ -18,7 +18,7 @@ def test_eval_relations_writes_metrics_and_islands_figure(shared_data: Path, tmp
     rc = main([
         "eval-relations", "--log", str(shared_data / "intel" / "intel.gfs.log"),
         "--relations", str(shared_data / "intel" / "intel.relations"), "--out", str(out),
-        "--max-scans", "50", "--seed", "3",
+        "--max-scans", "40", "--seed", "3",
     ])
     assert rc == 0
     m = json.loads((out / "metrics.json").read_text())
@@ -26,7 +26,7 @@ def test_eval_relations_writes_metrics_and_islands_figure(shared_data: Path, tmp
                 "median_rot_err_deg", "island_count", "gmapping_same_relations",
                 "gmapping_all_relations", "bridged"):
         assert key in m, key
-    assert m["scans"] == 50 and m["seed"] == 3 and m["beams"] == 180
+    assert m["scans"] == 40 and m["seed"] == 3 and m["beams"] == 180
     assert m["island_count"] >= 1
     assert round(m["gmapping_all_relations"]["mean_trans_err_m"], 3) == 0.065
     b = m["bridged"]
@@ -65,12 +65,12 @@ def test_eval_relations_missing_log_exit_2(tmp_path: Path, capsys: pytest.Captur
 def test_sonar_ring_cli_scores_labels(shared_data: Path, tmp_path: Path) -> None:
     out = tmp_path / "ring"
     rc = main(["sonar-ring", "--data", str(shared_data / "sonar" / "sensor_readings_24.data"),
-               "--out", str(out), "--limit", "200"])
+               "--out", str(out), "--limit", "120"])
     assert rc == 0
     m = json.loads((out / "metrics.json").read_text())
-    assert m["readings"] == 200
+    assert m["readings"] == 120
     per = m["per_label"]
-    assert sum(v["count"] for v in per.values()) == 200
+    assert sum(v["count"] for v in per.values()) == 120
     for v in per.values():
         assert 0.0 <= v["median_r"] <= 1.0 and 0.0 <= v["mean_fisher"] <= 1.0
     assert m["geometry"]["sensors"] == 24

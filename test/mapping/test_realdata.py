@@ -75,8 +75,15 @@ def test_compose_and_relative_are_inverse() -> None:
     np.testing.assert_allclose(rd.wrap_angles(back[:, 2] - b[:, 2]), 0.0, atol=1e-12)
 
 
-def test_gmapping_baseline_reproduces_the_published_figures(shared_data: Path) -> None:
-    track = rd.read_pose_track(shared_data / "intel" / "intel.gfs.log")
+@pytest.fixture(scope="module")
+def intel_track(shared_data: Path) -> rd.PoseTrack:
+    return rd.read_pose_track(shared_data / "intel" / "intel.gfs.log")
+
+
+def test_gmapping_baseline_reproduces_the_published_figures(
+    shared_data: Path, intel_track: rd.PoseTrack
+) -> None:
+    track = intel_track
     rel = rd.read_relations(shared_data / "intel" / "intel.relations")
     assert len(rel) == 2984
     stats = rd.ErrorStats.of(*rd.gmapping_relation_errors(track, rel))
@@ -87,8 +94,10 @@ def test_gmapping_baseline_reproduces_the_published_figures(shared_data: Path) -
     assert round(stats.median_rot_err_deg, 1) == 1.5
 
 
-def test_relation_times_match_log_lines_and_some_scans(shared_data: Path) -> None:
-    track = rd.read_pose_track(shared_data / "intel" / "intel.gfs.log")
+def test_relation_times_match_log_lines_and_some_scans(
+    shared_data: Path, intel_track: rd.PoseTrack
+) -> None:
+    track = intel_track
     rel = rd.read_relations(shared_data / "intel" / "intel.relations")
     times = np.unique(np.concatenate([rel.t1_s, rel.t2_s])) - rd.INTEL_LOG_TO_UNIX_S
     assert times.size == 1791
@@ -99,11 +108,13 @@ def test_relation_times_match_log_lines_and_some_scans(shared_data: Path) -> Non
     assert 300 < int(np.sum(at_scan)) < 500  # the relations were taken at raw laser times
 
 
-def test_pose_track_agrees_with_the_carmen_reader(shared_data: Path) -> None:
+def test_pose_track_agrees_with_the_carmen_reader(
+    shared_data: Path, intel_track: rd.PoseTrack
+) -> None:
     from island_mapping.bag.carmen import read_carmen
 
     path = shared_data / "intel" / "intel.gfs.log"
-    track = rd.read_pose_track(path)
+    track = intel_track
     log = read_carmen(path)
     rows = track.scan_rows
     np.testing.assert_array_equal(track.times_s[rows], log.times_s)
@@ -166,8 +177,8 @@ def test_fit_odometry_error_model_recovers_known_variances() -> None:
     assert m.var_theta_per_rad_rad2 == pytest.approx(0.002, rel=0.25)
 
 
-def test_default_odometry_model_fits_the_intel_log(shared_data: Path) -> None:
-    track = rd.read_pose_track(shared_data / "intel" / "intel.gfs.log")
+def test_default_odometry_model_fits_the_intel_log(intel_track: rd.PoseTrack) -> None:
+    track = intel_track
     rows = track.scan_rows
     raw_inc = rd.relative_poses(track.raw[rows[:-1]], track.raw[rows[1:]])
     cor_inc = rd.relative_poses(track.gmapping[rows[:-1]], track.gmapping[rows[1:]])

@@ -11,7 +11,7 @@ import pytest
 from island_mapping.core import realdata as rd
 from island_msgs_py.types import Island, LineModel, ModelType
 
-N_SCANS = 100  # ~5 min of the Intel log; keeps the end-to-end test to a few seconds
+N_SCANS = 50  # ~3 min of the Intel log; keeps the end-to-end test to a few seconds
 
 
 def _run(scan_island: list[int], scan_pose: list[list[float]]) -> rd.IslandRun:
@@ -39,6 +39,10 @@ def test_score_relations_uses_island_frame_poses_of_the_same_island() -> None:
     assert score.rot_err_deg[0] == pytest.approx(2.0)
     assert score.islands.count == 1 and score.ends_at_scans == 3
     assert np.isnan(score.trans_err_m[1:]).all()
+    # Two times 13 ms apart that both fall on scan 1: the log cannot resolve them.
+    pair = rd.Relations(np.array([19.995 + u]), np.array([20.008 + u]), np.array([[0.3, 0, 0]]))
+    same = rd.score_relations(run, scan_t, pair)
+    assert same.unresolvable == 1 and not same.covered.any()
 
 
 def test_bridging_adds_raw_odometry_from_the_nearer_localized_scan() -> None:
@@ -61,11 +65,11 @@ def test_bridging_adds_raw_odometry_from_the_nearer_localized_scan() -> None:
     assert bridged.trans_err_m[0] == pytest.approx(0.02)  # 0.3 m by odometry vs 0.32 m true
     # The ODOM line at 2.9 s is nearer to scan 1: its fix 1.1 m minus the 0.2 m that raw
     # odometry still moved before scan 1 = 0.9 m.
-    i, p, _ = rd.island_poses_at(run, np.array([0.0, 4.0]), np.array([2.9 + u]), track=track,
+    i, p, _, _ = rd.island_poses_at(run, np.array([0.0, 4.0]), np.array([2.9 + u]), track=track,
                                  bridge_s=1.5)
     assert i.tolist() == [0] and p[0, 0] == pytest.approx(0.9)
     # Too far from any scan for a 0.5 s bridge: no pose.
-    i2, _, _ = rd.island_poses_at(run, np.array([0.0, 4.0]), np.array([1.0 + u]), track=track,
+    i2, _, _, _ = rd.island_poses_at(run, np.array([0.0, 4.0]), np.array([1.0 + u]), track=track,
                                   bridge_s=0.5)
     assert i2.tolist() == [-1]
 
@@ -129,7 +133,7 @@ def test_sonar_like_mode_keeps_few_beams_and_still_builds_islands(
     intel: tuple[rd.PoseTrack, np.ndarray, rd.Relations],
 ) -> None:
     track, ranges, _ = intel
-    n = 60
+    n = 40
     rows = track.scan_rows[:n]
     cfg = rd.sonar_like_config(24)
     assert cfg.beams == 24 and cfg.max_range_m == rd.SONAR_LIKE_RANGE_M

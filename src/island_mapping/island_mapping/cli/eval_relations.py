@@ -48,6 +48,7 @@ def _stats(score: rd.RelationScore) -> dict[str, Any]:
     return {
         "covered_relations": int(np.sum(score.covered)),
         "relations_with_pose_at_both_ends": score.ends_at_scans,
+        "unresolvable_relations": score.unresolvable,
         **{k: v for k, v in score.islands.as_dict().items() if k != "count"},
         "gmapping_same_relations": score.gmapping_covered.as_dict(),
         "covered_islands": sorted({int(i) for i in score.island[score.covered]}),

@@ -555,7 +555,9 @@ class RealIslandConfig:
                   "epsilon) are tried when the robot is in no island [m]"},
     )
     max_residual_m: float = field(
-        default=0.08, metadata={"help": "largest mean point-to-model residual of a fix [m]"}
+        default=0.2,
+        metadata={"help": "largest RMS residual of the matched points of a fix (a sanity bound; "
+                  "the inlier test decides) [m]"},
     )
     min_matched_fraction: float = field(
         default=0.6, metadata={"help": "smallest fraction of scan points matched to the model [-]"}
@@ -564,7 +566,7 @@ class RealIslandConfig:
         default=0.1, metadata={"help": "a scan point within this of the model is an inlier [m]"}
     )
     min_inlier_fraction: float = field(
-        default=0.0,
+        default=0.6,
         metadata={"help": "a fix needs at least this fraction of scan points as inliers "
                   "(0 = no inlier test) [-]"},
     )
@@ -915,7 +917,9 @@ class RelationScore:
     trans_err_m, rot_err_deg: (N,) errors of covered relations (NaN elsewhere);
     islands: statistics over covered relations; gmapping_covered / gmapping_all: the GMapping
     trajectory on the same covered relations and on all relations; ends_at_scans: relations
-    whose two times both have a pose source (a scan within tolerance, or a bridge).
+    whose two times both have a pose source (a scan within tolerance, or a bridge);
+    unresolvable: relations left out because both ends fall on the same scan or log line
+    although their times differ by more than the matching tolerance.
     """
 
     covered: BoolArray
@@ -926,6 +930,7 @@ class RelationScore:
     gmapping_covered: ErrorStats
     gmapping_all: ErrorStats
     ends_at_scans: int
+    unresolvable: int = 0
 
 
 def island_poses_at(
@@ -936,8 +941,9 @@ def island_poses_at(
     track: PoseTrack | None = None,
     bridge_s: float = 0.0,
     tolerance_s: float = SCAN_MATCH_TOLERANCE_S,
-) -> tuple[IntArray, FloatArray, BoolArray]:
-    """(island id (N,), island-frame pose (N, 3), has-a-scan (N,)) at absolute times.
+) -> tuple[IntArray, FloatArray, BoolArray, IntArray]:
+    """(island id (N,), island-frame pose (N, 3), has-a-pose-source (N,), source (N,)) at
+    absolute times; source is the scan index, or S + the track row of a bridged log line, or -1.
 
     A time within `tolerance_s` of a scan takes that scan's fix. With a `track` and
     `bridge_s` > 0, a time that matches a log line (within tolerance) but no scan takes the fix
@@ -950,8 +956,9 @@ def island_poses_at(
     has = j >= 0
     isl = np.where(has, run.scan_island[np.maximum(j, 0)], -1).astype(np.int64)
     pose = np.where(has[:, None], run.scan_pose[np.maximum(j, 0)], np.nan)
+    source = j.copy()
     if track is None or bridge_s <= 0:
-        return isl, pose, has
+        return isl, pose, has, source
     rows = track.scan_rows
     if rows.size < st.size:
         raise RealDataError(f"pose track has {rows.size} scans, the run {st.size}")
@@ -965,13 +972,14 @@ def island_poses_at(
                 if dt <= bridge_s and (best is None or dt < best[0]):
                     best = (dt, s)
         has[q] = True
+        source[q] = st.size + r
         if best is None:
             continue
         s = best[1]
         odo = relative_poses(track.raw[rows[s]], track.raw[r])
         isl[q] = run.scan_island[s]
         pose[q] = compose_poses(run.scan_pose[s], odo)[0]
-    return isl, pose, has
+    return isl, pose, has, source
 
 
 def score_relations(
@@ -983,11 +991,15 @@ def score_relations(
     bridge_s: float = 0.0,
 ) -> RelationScore:
     """Relative pose errors of relations whose two ends were localized in the same island."""
-    i1, p1, h1 = island_poses_at(run, scan_times_s, relations.t1_s, track=track,
-                                 bridge_s=bridge_s)
-    i2, p2, h2 = island_poses_at(run, scan_times_s, relations.t2_s, track=track,
-                                 bridge_s=bridge_s)
-    covered = (i1 >= 0) & (i1 == i2)
+    i1, p1, h1, s1 = island_poses_at(run, scan_times_s, relations.t1_s, track=track,
+                                     bridge_s=bridge_s)
+    i2, p2, h2, s2 = island_poses_at(run, scan_times_s, relations.t2_s, track=track,
+                                     bridge_s=bridge_s)
+    # Both ends on the same scan (or log line) although their times differ: the log's timestamps
+    # (6 significant digits, 10 ms steps after 1000 s) cannot resolve the pair.
+    dt = np.abs(relations.t2_s - relations.t1_s)
+    unresolvable = (s1 >= 0) & (s1 == s2) & (dt > SCAN_MATCH_TOLERANCE_S)
+    covered = (i1 >= 0) & (i1 == i2) & ~unresolvable
     n = len(relations)
     trans = np.full(n, np.nan)
     rot = np.full(n, np.nan)
@@ -1002,6 +1014,7 @@ def score_relations(
     return RelationScore(
         covered, np.where(covered, i1, -1).astype(np.int64), trans, rot,
         ErrorStats.of(trans[covered], rot[covered]), g_cov, g_all, int(np.sum(h1 & h2)),
+        int(np.sum(unresolvable)),
     )
 
 
