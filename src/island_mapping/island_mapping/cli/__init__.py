@@ -25,6 +25,7 @@ SUBCOMMANDS: tuple[tuple[str, str, str], ...] = (
     ("topic", "topic", "live topics without ros2cli: list, echo"),
     ("eval-relations", "eval_relations", "score island localization on Kuemmerle relations"),
     ("sonar-ring", "sonar_ring", "score the real 24-sonar ring readings with line models and R"),
+    ("replay", "replay", "rebuild the island graph from a recorded run"),
 )
 
 EXIT_BAD_INPUT = 2
