@@ -266,7 +266,11 @@ def _fit_wall(pts: FloatArray, perp_m: float, tol_m: float) -> tuple[float, floa
     fit is used only when all points lie within `tol_m` of it (one wall, not a corner).
     """
     if pts.shape[0] >= 2 and float(np.ptp(pts[:, 0])) >= _MIN_FIT_SPAN_M:
-        b, a = np.polyfit(pts[:, 0], pts[:, 1], 1)
+        # least-squares line y = a + b x (closed form: a handful of points per side)
+        xm, ym = float(pts[:, 0].mean()), float(pts[:, 1].mean())
+        dx, dy = pts[:, 0] - xm, pts[:, 1] - ym
+        b = float(dx @ dy) / float(dx @ dx)
+        a = ym - b * xm
         resid = np.abs(pts[:, 1] - (a + b * pts[:, 0])) / math.sqrt(1.0 + b * b)
         if float(np.max(resid)) <= tol_m:
             return float(abs(a) / math.sqrt(1.0 + b * b)), float(math.atan(b))
