@@ -8,15 +8,19 @@ import numpy as np
 import pytest
 from island_mapping.core.graph import TopoGraph
 from island_mapping.core.navigate import (
+    IslandTracker,
     NavigateConfig,
     NavigateError,
     SimSetup,
+    TrackerConfig,
     evaluate_routes,
+    explore,
     follow_route,
     follow_route_global_odometry,
     with_reverse_edges,
 )
 from island_msgs_py.types import ControlStrategy, Edge, Island, LineModel, ModelType, Pose2D
+from island_sim.core.sonar import SonarConfig, SonarModel
 from island_sim.core.world import World
 
 H = 1.25  # corridor half width [m]
@@ -124,3 +128,57 @@ def test_bad_inputs_are_named() -> None:
         NavigateConfig(success_tol_m=0.0)
     with pytest.raises(NavigateError, match="n_pairs"):
         evaluate_routes(graph, SimSetup(world), 0, np.random.default_rng(0), ODOM_AT_EXPLORATION)
+
+
+def test_tracker_localizes_in_the_island_it_is_near_and_follows_odometry_drift() -> None:
+    world = l_world()
+    island = Island(0, model_at(world, ORIGINS[0]), ModelType.LINE, 1.0, 0.0,
+                    origin_truth=ORIGINS[0])
+    tracker = IslandTracker(TrackerConfig(window_scans=10, every_n_scans=5))
+    # The odometry frame is off the world by 0.2 m and 3 deg (drift): odom = offset (+) truth.
+    offset = Pose2D(0.2, -0.1, math.radians(3.0))
+    tracker.add_island(island, offset.compose(ORIGINS[0]))
+    sonar = SonarModel(SonarConfig(), seed=0)
+    rng = np.random.default_rng(0)
+    fixes = []
+    for k in range(60):  # 3 m along the corridor, away from the island origin
+        truth = Pose2D(2.0 + 0.05 * k, 0.1, 0.0)
+        odom = offset.compose(truth).compose(Pose2D(0.003 * k, 0.0, 0.0))  # + slow drift
+        fix = tracker.on_scan(odom, sonar.scan(world, truth, rng), sonar.angles_rad)
+        if fix is not None:
+            fixes.append((fix, truth))
+    assert len(fixes) >= 8
+    for fix, truth in fixes:
+        want = truth.relative_to(ORIGINS[0])
+        assert fix.frame_id == "island_0"
+        assert math.hypot(fix.pose.x - want.x, fix.pose.y - want.y) < 0.15
+        assert fix.covariance.shape == (3, 3) and fix.covariance[0, 0] > 0
+    assert tracker.nearest(Pose2D(40.0, 40.0, 0.0)) is None
+    far = Pose2D(15.0, 0.0, 0.0)
+    assert all(
+        tracker.on_scan(far, sonar.scan(world, far, rng), sonar.angles_rad) is None
+        for _ in range(10)
+    )
+
+
+@pytest.mark.slow
+def test_explore_then_navigate_on_the_map_it_built() -> None:
+    """The closed loop without ROS: hall following, eq. 3 attempts and stars build islands in
+    the L building; the route between the first two succeeds on that map."""
+    world = l_world()
+    res = explore(SimSetup(world), 110.0, start=Pose2D(3.0, 0.0, 0.0),
+                  rng=np.random.default_rng(0))
+    assert res.collisions == 0
+    assert len(res.islands) >= 2 and res.edges
+    e = res.edges[0]
+    assert (e.source, e.target) == (0, 1) and e.strategy.steps
+    assert e.strategy.length_m == pytest.approx(e.length_m, abs=0.3)
+    first, second = res.islands[0], res.islands[1]
+    assert first.origin_truth == Pose2D(3.0, 0.0, 0.0)
+    assert second.origin_truth is not None
+    # Island 1 is where the corridor's end walls come into sonar range, not in the middle.
+    assert second.origin_truth.x > 12.0
+    assert set(res.origins_odom) == {i.id for i in res.islands}
+    assert res.truth_path.shape[1] == 3 and len(res.truth_path) == 1100
+    route = follow_route(res.graph(), [0, 1], SimSetup(world), rng=np.random.default_rng(1))
+    assert route.success, route
