@@ -11,9 +11,9 @@ and which events happened (attempt started, failed at once, island accepted, att
 The decisions (see docs/builder.md):
 
 - epsilon, the estimated accumulated error since the robot last knew where it was, is
-  sqrt(largest eigenvalue of the xy block of (Sigma_now - Sigma_anchor)) where Sigma is the
-  odometry's propagated pose covariance and Sigma_anchor its value when the last island's origin
-  was anchored.
+  sqrt(largest eigenvalue of the xy block of P), P the covariance of the odometric pose relative
+  to the last island's origin, rebuilt from the odometry's propagated covariance
+  (`RelativeCovariance`).
 - When epsilon > E_min the robot is "lost" and attempts an island. A quick check fits lines to
   the points seen over the last metres of travel and evaluates every model type at the robot; if
   even a generous fraction of the eq. 3 bound is out of reach the attempt fails at once (a dot in
@@ -22,9 +22,11 @@ The decisions (see docs/builder.md):
   of up to `leg_length_m` ahead, left, behind and right of it (each leg shortened so it stays in
   free space as the sonar sees it, skipped if too short), reversing back to the centre after each
   leg, accumulating scan points in the origin frame by odometry. After each leg it fits lines and
-  evaluates every model type at the origin: accept when max_i(R_i / T_i) > E_min / epsilon
-  (eq. 3); dismiss once `dismiss_min_legs` legs are done and the best normalized measure is below
-  `dismiss_fraction` of the bound (a partial star); a full star that never reached the bound is
+  evaluates every model type at the origin: the island is acceptable when
+  max_i(R_i / T_i) > max(E_min / epsilon, bound_floor) (eq. 3); the attempt is dismissed once
+  `dismiss_min_legs` legs are done and the best normalized measure is below `dismiss_fraction`
+  of the bound (a partial star). An acceptable star is completed, then the points seen from the
+  origin must localize back onto it from offset guesses (`verify_localization`), else it is
   dismissed too. Either way the robot faces the origin's heading again before handing back, so
   the hall follower's strategy continues from where it was.
 - The first island is built at the start pose (the paper's robot begins at a starting node) with
