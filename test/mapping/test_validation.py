@@ -126,3 +126,13 @@ def test_bad_config_is_named() -> None:
         ValidationConfig(trials=0)
     with pytest.raises(ValidationError, match="grid points"):
         run_validation(ROOM_CORRIDOR, ValidationConfig(resolution_m=60.0))
+
+
+def test_spearman_ceiling_of_a_two_valued_confidence() -> None:
+    from island_mapping.core.validation import spearman_ceiling
+
+    p = 0.8
+    conf = np.r_[np.ones(80), np.zeros(20)]
+    assert spearman_ceiling(conf) == pytest.approx(math.sqrt(3 * p * (1 - p)), abs=0.01)
+    assert spearman_ceiling(np.linspace(0, 1, 50)) == pytest.approx(1.0)
+    assert math.isnan(spearman_ceiling(np.ones(5)))

@@ -17,6 +17,8 @@ Confidence map (as the paper, with several trials per point):
 
 Comparison of a measure M (R of the line model, or the Fisher score) with the confidence:
 - M is normalized to [0, 1] by its maximum over the evaluated points (M / max M; M >= 0);
+- `spearman_ceiling`: the largest Spearman ANY measure could reach against this confidence (its
+  ties cap it; a two-valued confidence with success fraction p caps it at sqrt(3 p (1 - p)));
 - residual = M_norm - conf; `frac_residual_gt_0_4` = fraction of points with |residual| > 0.4
   (paper Fig. 2: about 25 %); Spearman rank correlation of M and conf; ROC AUC of M for
   "success" (Mann-Whitney, ties count 1/2).
@@ -290,6 +292,23 @@ def compare(
     return Comparison(frac, rho, roc_auc(m, conf.success), int(m.size))
 
 
+def spearman_ceiling(confidence: npt.ArrayLike) -> float:
+    """The largest Spearman correlation ANY tie-free measure can reach with `confidence`.
+
+    Ties in the confidence (e.g. every successful point at ~1) cap it: a measure ordered exactly
+    like the confidence, ties broken arbitrarily, reaches this value and no measure exceeds it.
+    For a two-valued confidence with success fraction p it is sqrt(3 p (1 - p)).
+    """
+    c = np.asarray(confidence, dtype=np.float64)
+    if c.size < 2 or np.ptp(c) == 0:
+        return math.nan
+    return float(spearmanr(rankdata(c, method="ordinal"), c).statistic)
+
+
+def _clean4(v: float) -> float | None:
+    return round(v, 4) if math.isfinite(v) else None
+
+
 def residuals(measure: npt.ArrayLike, conf: ConfidenceMap) -> FloatArray:
     """normalize(measure) - confidence (M,)."""
     return normalize(measure) - conf.confidence
@@ -444,6 +463,7 @@ def run_validation(
             "success_rate": round(float(conf.success.mean()), 4),
             "converged_rate": round(float(conf.converged.mean()), 4),
             "median_error_m": round(float(np.median(conf.errors)), 4),
+            "spearman_ceiling": _clean4(spearman_ceiling(conf.confidence)),
         },
         "line": {**line_cmp.as_dict(thr), "params": _params(lcfg, ("k", "c", "m"))},
         "fisher": {**fisher_cmp.as_dict(thr), "params": _params(fcfg, ("std_ref_m", "m"))},
