@@ -10,7 +10,8 @@ side in this one run:
 - lockstep, lean: the same without the nodes' parameter services (fewer wait-set entities);
 - lockstep, odom at 10 Hz: /odom, /ground_truth and /clock only at the sensor rate;
 - free-running: no lockstep; the physics does not wait, so the consumers drop messages (the
-  scans and commands actually processed are printed).
+  scans and commands actually processed are printed);
+- core only: the same robot/sonar/follower loop without ROS, for reference.
 RTF = simulated seconds / wall seconds; CPU RTF = simulated seconds / process CPU seconds (the
 machine is shared, so wall time includes other processes' load).
 """
@@ -72,6 +73,31 @@ def run(world: str, sim_s: float, lockstep: bool, publish_hz: float, lean: bool)
     return out
 
 
+def run_core(world_name: str, sim_s: float) -> dict[str, Any]:
+    """The same loop without ROS: SimRobot at 50 Hz, SonarModel + HallFollower at 10 Hz."""
+    import numpy as np
+    from island_sim.core.hall_follower import HallFollower
+    from island_sim.core.robot import SimRobot
+    from island_sim.core.sonar import SonarModel
+    from island_sim.core.world import load_world
+
+    world = load_world(world_name)
+    rng = np.random.default_rng(0)
+    robot = SimRobot(world, world.start_pose, rng)
+    sonar, follower = SonarModel(), HallFollower()
+    v = w = 0.0
+    t0, c0 = time.monotonic(), time.process_time()
+    for k in range(round(sim_s * 50)):
+        if k % 5 == 0:
+            ranges = sonar.scan(world, robot.true_pose, rng)
+            v, w = follower.update(ranges, sonar.angles_rad, robot.odom_pose, robot.time_s)
+        robot.step(v, w, 0.02)
+    wall, cpu = time.monotonic() - t0, time.process_time() - c0
+    n = round(sim_s * 10)
+    return {"wall_s": wall, "rtf": sim_s / wall, "cpu_rtf": sim_s / cpu, "processed": n,
+            "scans": n, "timeouts": 0}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sim-seconds", type=float, default=60.0)
@@ -88,11 +114,13 @@ def main() -> None:
     print(f"{args.world}: {args.sim_seconds:g} s simulated, physics 50 Hz, sonar 10 Hz, "
           f"goal {GOAL_RTF:g}x real time, {os.cpu_count()} cores, "
           f"load {os.getloadavg()[0]:.1f}")
-    print(f"{'variant':28s} {'wall s':>7s} {'RTF':>6s} {'/goal':>6s} {'CPU RTF':>8s} "
+    print(f"{'variant':30s} {'wall s':>7s} {'RTF':>6s} {'/goal':>6s} {'CPU RTF':>8s} "
           f"{'scans used/made':>15s} {'timeouts':>8s}")
-    for name, lockstep, hz, lean in variants:
-        r = run(args.world, args.sim_seconds, lockstep, hz, lean)
-        print(f"{name:28s} {r['wall_s']:7.1f} {r['rtf']:6.1f} {r['rtf'] / GOAL_RTF:6.2f} "
+    rows = [(name, lambda v=v: run(args.world, args.sim_seconds, *v)) for name, *v in variants]
+    rows.append(("core only, no ROS (reference)", lambda: run_core(args.world, args.sim_seconds)))
+    for name, fn in rows:
+        r = fn()
+        print(f"{name:30s} {r['wall_s']:7.1f} {r['rtf']:6.1f} {r['rtf'] / GOAL_RTF:6.2f} "
               f"{r['cpu_rtf']:8.1f} {r['processed']:7d}/{r['scans']:<7d} {r['timeouts']:8d}")
 
 
