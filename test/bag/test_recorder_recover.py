@@ -6,6 +6,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -232,3 +233,41 @@ def test_not_an_mcap_file(tmp_path: Path) -> None:
         open_bag(junk)
     with pytest.raises(BagError, match="nothing to recover"):
         recover_bag(junk, tmp_path / "o")
+
+
+@pytest.mark.parametrize("clock_publisher", [True, False])
+def test_stampless_message_before_first_clock(
+    ros_context: Any, spin: Callable[..., bool], tmp_path: Path, clock_publisher: bool
+) -> None:
+    import rclpy
+    from island_mapping.bag.reader import open_bag
+    from island_mapping.bag.recorder import RecorderConfig, RunRecorder
+    from rclpy.executors import SingleThreadedExecutor
+    from rosgraph_msgs.msg import Clock
+    from std_msgs.msg import String
+
+    pubs = rclpy.create_node("pubs", context=ros_context)
+    rec = rclpy.create_node("rec", context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(pubs)
+    ex.add_node(rec)
+    if clock_publisher:
+        pubs.create_publisher(Clock, "/clock", 10)  # a sim-time graph whose clock has not ticked
+    note = pubs.create_publisher(String, "/note", 10)
+    recorder = RunRecorder(rec, tmp_path / "b", topics=["/note"],
+                           config=RecorderConfig(rescan_period_s=0.1))
+    wall_before = time.time_ns()
+    try:
+        assert spin(ex, lambda: recorder.matched_publishers().get("/note", 0) > 0, 10.0)
+        note.publish(String(data="early"))
+        assert spin(ex, lambda: recorder.received == 1, 10.0)
+    finally:
+        recorder.close()
+        ex.shutdown()
+        pubs.destroy_node()
+        rec.destroy_node()
+    (msg,) = list(open_bag(tmp_path / "b").messages())
+    if clock_publisher:
+        assert msg.log_time_ns == 0  # sim time before the first clock, never wall time
+    else:
+        assert msg.log_time_ns >= wall_before  # no clock anywhere: wall time

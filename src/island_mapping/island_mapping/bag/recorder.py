@@ -11,7 +11,8 @@ Topics are discovered with `node.get_topic_names_and_types()` at start and then 
 right after creating publishers. Subscriptions are raw (CDR bytes are recorded as they arrive,
 no deserialization) with QoS adapted to the publishers (transient local when all publishers are,
 so latched topics are recorded), and the publishers' QoS go into the bag. Messages are stamped
-with their header/clock stamp, or the latest /clock (see writer.py); a wall-clock timer finishes
+with their header/clock stamp, or the latest /clock (see writer.py), or sim time 0 before the
+first /clock on a sim-time graph (wall time only without any clock); a wall-clock timer finishes
 the open chunk every `flush_period_s` so a killed recorder loses at most that much.
 """
 
@@ -113,6 +114,7 @@ class RunRecorder:
         self._skipped: set[str] = set()
         self._closed = False
         self._clock_sub: Any = None
+        self._sim_time: bool | None = None
         wall = Clock(clock_type=ClockType.STEADY_TIME)
         self._rescan_timer = node.create_timer(cfg.rescan_period_s, self.rescan, clock=wall)
         self._flush_timer = node.create_timer(cfg.flush_period_s, self.flush, clock=wall)
@@ -190,10 +192,9 @@ class RunRecorder:
                 return
             try:
                 log_time = None
-                if self.writer.latest_clock_ns is None:
-                    rec = self.writer.topics[topic]
-                    if not rec.stamp_first:
-                        log_time = self.node.get_clock().now().nanoseconds
+                stamped = self.writer.topics[topic].stamp_first
+                if self.writer.latest_clock_ns is None and not stamped:
+                    log_time = self._time_before_first_clock_ns()
                 self.writer.write_raw(topic, data, log_time)
                 self.received += 1
             except BagError as exc:
@@ -203,6 +204,21 @@ class RunRecorder:
                 )
 
         return on_message
+
+    def _time_before_first_clock_ns(self) -> int:
+        """Log time of a stamp-less message that arrives before any /clock message.
+
+        On sim time (the node uses it, or someone publishes /clock) that is sim time 0, as
+        sim-time nodes read until the first clock; otherwise the node's (wall) clock.
+        """
+        if self._sim_time is None:
+            use_sim = self.node.get_parameter("use_sim_time").value
+            clock_published = self.node.count_publishers(CLOCK_TOPIC) > 0
+            if use_sim or clock_published:
+                self._sim_time = True  # settled: a graph with a clock stays on sim time
+            else:
+                return int(self.node.get_clock().now().nanoseconds)
+        return 0
 
     def flush(self) -> None:
         """Write the open chunk to disk (recoverable after a crash)."""
