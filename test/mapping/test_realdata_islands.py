@@ -39,8 +39,8 @@ def test_score_relations_uses_island_frame_poses_of_the_same_island() -> None:
     assert score.rot_err_deg[0] == pytest.approx(2.0)
     assert score.islands.count == 1 and score.ends_at_scans == 3
     assert np.isnan(score.trans_err_m[1:]).all()
-    # Two times 13 ms apart that both fall on scan 1: the log cannot resolve them.
-    pair = rd.Relations(np.array([19.995 + u]), np.array([20.008 + u]), np.array([[0.3, 0, 0]]))
+    # Two times 8 ms apart that both fall on scan 1: the log cannot resolve them.
+    pair = rd.Relations(np.array([19.996 + u]), np.array([20.004 + u]), np.array([[0.3, 0, 0]]))
     same = rd.score_relations(run, scan_t, pair)
     assert same.unresolvable == 1 and not same.covered.any()
 
