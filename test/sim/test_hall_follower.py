@@ -322,3 +322,25 @@ def test_reset_in_the_middle_of_a_turn_keeps_only_the_rest_of_it() -> None:
     rest_deg = math.degrees(abs(robot.odom_pose.theta - reset_at))
     assert 360 - steps[0].value == pytest.approx(rest_deg, abs=3.0)  # a right turn: CW
     assert 10 < rest_deg < 65  # only what remained of the quarter turn
+
+
+def test_no_progress_while_driving_counts_as_blocked() -> None:
+    """A wall the sonar cannot see (e.g. a specular glass pane) stops the wheels: odometry tells."""
+    rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]
+    world = grid_world(rows, Pose2D(5.0, 2.0, 0.0))
+    ranges = SonarModel(SonarConfig(ideal=True)).scan(world, world.start_pose)
+    angles = SonarModel(SonarConfig(ideal=True)).angles_rad
+    cfg = HallFollowerConfig(stall_time_s=1.0)
+    follower = HallFollower(cfg)
+    stuck = Pose2D(5.0, 2.0, 0.0)
+    commands = []
+    for k in range(30):  # 3 s at 10 Hz: the sonar sees a free hall, the odometry never moves
+        commands.append(follower.update(ranges, angles, stuck, 0.1 * k))
+        if follower.stalls:
+            break
+    assert follower.stalls == 1
+    assert 0.1 * len(commands) == pytest.approx(cfg.stall_time_s + 0.2, abs=0.25)
+    assert max(v for v, _ in commands[:-1]) > 0.3  # it did try to drive
+    last = follower.decisions[-1]
+    assert last.at_dead_end and last.choice is TurnChoice.BACK
+    assert follower.state is FollowerState.TURN

@@ -20,6 +20,7 @@ A pure state machine: `HallFollower.update(ranges_m, angles_rad, odom_pose, t_s)
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -41,6 +42,10 @@ _MIN_FIT_SPAN_M = 0.2
 _AXIS_SMOOTHING = 0.3
 # A robot that moved less than this in one control period has stopped [m].
 _SETTLED_STEP_M = 0.002
+# Stall detection: below this commanded speed nothing is expected to move [m/s]; progress in a
+# control period under this fraction of (commanded speed x period) counts as no progress [-].
+_STALL_MIN_SPEED_MPS = 0.1
+_STALL_PROGRESS_FRACTION = 0.2
 # Largest angle [rad] between the left and right wall fits of one hallway.
 _PARALLEL_RAD = math.radians(8.0)
 # Largest disagreement [rad] between the wall-based and the held hallway direction still trusted.
@@ -182,6 +187,11 @@ class HallFollowerConfig:
     turn_tolerance_deg: float = field(
         default=1.5, metadata={"help": "a rotation in place ends within this of its target [deg]"}
     )
+    stall_time_s: float = field(
+        default=1.0,
+        metadata={"help": "driving forward while odometry shows (almost) no progress for this "
+                  "long counts as blocked (a wall the sonar cannot see) [s]"},
+    )
     min_turn_rate_radps: float = field(
         default=0.15, metadata={"help": "smallest turn rate while rotating in place [rad/s]"}
     )
@@ -203,6 +213,7 @@ class HallFollowerConfig:
             "rearm_distance_m", "confirm_distance_m", "default_hall_width_m", "side_lag_m",
             "min_advance_m", "enter_distance_m", "straight_free_m", "k_lateral",
             "max_approach_deg", "k_heading", "turn_tolerance_deg", "min_turn_rate_radps",
+            "stall_time_s",
         ):
             v = getattr(self, f_name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
@@ -294,6 +305,10 @@ class HallFollower:
         self._script = list(self.config.script_choices)
         self.decisions: list[Decision] = []
         self.cancelled_turns = 0
+        self.stalls = 0  # times odometry showed the robot stuck while driving forward
+        self._last_v = 0.0
+        self._stall_since: float | None = None
+        self._last_t: float | None = None
         self._enabled = True
         self._started = False
         self._state = FollowerState.FOLLOW
@@ -449,6 +464,30 @@ class HallFollower:
         if not self._enabled:
             return 0.0, 0.0
         self._track_motion(odom_pose)
+        stalled = self._stalled(t_s)
+        self._last_t = t_s
+        if stalled:
+            self.stalls += 1
+            self._stall_since = None
+            p = dataclasses.replace(p, front_m=0.0)  # blocked by something the sonar missed
+        v, w = self._control(p, odom_pose, t_s)
+        self._last_v = v
+        return v, w
+
+    def _stalled(self, t_s: float) -> bool:
+        """Commanded forward for `stall_time_s` while odometry advanced < 1/5 of that speed."""
+        moving = self._state in (FollowerState.FOLLOW, FollowerState.ADVANCE, FollowerState.ENTER)
+        dt_s = t_s - self._last_t if self._last_t is not None else 0.0
+        expected_m = self._last_v * dt_s * _STALL_PROGRESS_FRACTION
+        if (not moving or self._last_v < _STALL_MIN_SPEED_MPS or dt_s <= 0.0
+                or self._last_step_m >= expected_m):
+            self._stall_since = None
+            return False
+        if self._stall_since is None:
+            self._stall_since = t_s
+        return t_s - self._stall_since >= self.config.stall_time_s
+
+    def _control(self, p: Perception, odom_pose: Pose2D, t_s: float) -> tuple[float, float]:
         if not self._started:
             self._started = True
             self._axis = odom_pose.theta
