@@ -170,7 +170,7 @@ class HallFollowerNode(Node):
 
 def main(args: Sequence[str] | None = None) -> int:
     ensure_ros_env()
-    rclpy.init(args=args)
+    rclpy.init(args=list(args) if args is not None else None)
     try:
         node = HallFollowerNode()
     except ValueError as exc:  # bad parameters (HallFollowerError names the field)

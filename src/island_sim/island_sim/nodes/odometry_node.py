@@ -266,7 +266,7 @@ class OdometryNode(Node):
 
 def main(args: Sequence[str] | None = None) -> int:
     ensure_ros_env()
-    rclpy.init(args=args)
+    rclpy.init(args=list(args) if args is not None else None)
     try:
         node = OdometryNode()
     except ValueError as exc:  # bad parameters: WorldError, RobotError, ...

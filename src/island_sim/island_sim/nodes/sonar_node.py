@@ -108,7 +108,7 @@ class SonarNode(Node):
 
 def main(args: Sequence[str] | None = None) -> int:
     ensure_ros_env()
-    rclpy.init(args=args)
+    rclpy.init(args=list(args) if args is not None else None)
     try:
         node = SonarNode()
     except ValueError as exc:  # bad parameters: WorldError, SonarError, ...
