@@ -166,7 +166,7 @@ def test_explore_then_navigate_on_the_map_it_built() -> None:
     """The closed loop without ROS: hall following, eq. 3 attempts and stars build islands in
     the L building; the route between the first two succeeds on that map."""
     world = l_world()
-    res = explore(SimSetup(world), 110.0, start=Pose2D(3.0, 0.0, 0.0),
+    res = explore(SimSetup(world), 130.0, start=Pose2D(3.0, 0.0, 0.0),
                   rng=np.random.default_rng(0))
     assert res.collisions == 0
     assert len(res.islands) >= 2 and res.edges
@@ -176,9 +176,10 @@ def test_explore_then_navigate_on_the_map_it_built() -> None:
     first, second = res.islands[0], res.islands[1]
     assert first.origin_truth == Pose2D(3.0, 0.0, 0.0)
     assert second.origin_truth is not None
-    # Island 1 is where the corridor's end walls come into sonar range, not in the middle.
-    assert second.origin_truth.x > 12.0
+    # Island 1 is at the corner (the quick check passes as the end wall comes into range; the
+    # attempt is deferred while the measure still rises), not in the corridor's middle.
+    assert math.hypot(second.origin_truth.x - 18.75, second.origin_truth.y) < 1.0
     assert set(res.origins_odom) == {i.id for i in res.islands}
-    assert res.truth_path.shape[1] == 3 and len(res.truth_path) == 1100
+    assert res.truth_path.shape[1] == 3 and len(res.truth_path) == 1300
     route = follow_route(res.graph(), [0, 1], SimSetup(world), rng=np.random.default_rng(1))
     assert route.success, route

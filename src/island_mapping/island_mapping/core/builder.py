@@ -172,6 +172,30 @@ class BuilderConfig:
             "the next one [m]"
         },
     )
+    defer_while_rising: bool = field(
+        default=True,
+        metadata={
+            "help": "when the quick check passes, keep following while its measure still rises "
+            "(by more than defer_rise_fraction per defer_step_m) so the star starts near the "
+            "measure's peak rather than where a feature first comes into sonar range [bool]"
+        },
+    )
+    defer_step_m: float = field(
+        default=0.5, metadata={"help": "path between quick checks while deferring [m]"}
+    )
+    defer_rise_fraction: float = field(
+        default=0.05, metadata={"help": "relative rise of the quick measure that defers [-]"}
+    )
+    defer_max_m: float = field(
+        default=4.0, metadata={"help": "longest path an attempt is deferred [m]"}
+    )
+    defer_timeout_s: float = field(
+        default=5.0,
+        metadata={
+            "help": "a deferred attempt starts anyway after this long without reaching "
+            "the next check (the robot stopped) [s]"
+        },
+    )
     dismiss_min_legs: int = field(
         default=2, metadata={"help": "legs of the star done before an attempt may be dismissed [-]"}
     )
@@ -487,6 +511,9 @@ class IslandBuilder:
         self._last_island: Island | None = None
         self._island_path_start_m = 0.0  # path length when the last island was handed back
         self._retry_at_path_m = 0.0
+        self._defer_prev: float | None = None  # quick measure at the last deferral
+        self._defer_m = 0.0  # path followed while deferring [m]
+        self._defer_t_s = 0.0  # time of the last deferral [s]
         self._strategy = ControlStrategy(())
         self._attempt: _Attempt | None = None
         self._events: list[BuilderEvent] = []
@@ -611,7 +638,16 @@ class IslandBuilder:
 
     def _maybe_attempt(self) -> None:
         eps = self.epsilon_m
-        if eps <= self.config.e_min_m or self._path_m < self._retry_at_path_m:
+        if eps <= self.config.e_min_m:
+            return
+        stalled = (
+            self._defer_prev is not None and self._t - self._defer_t_s > self.config.defer_timeout_s
+        )
+        if stalled:  # deferring, but the robot stopped moving on: attempt here
+            self._defer_prev, self._defer_m = None, 0.0
+            self._start_attempt(first=False)
+            return
+        if self._path_m < self._retry_at_path_m:
             return
         assert self._odom is not None
         bound = eq3_bound(self.config, eps)
@@ -621,8 +657,10 @@ class IslandBuilder:
             else np.zeros((0, 2))
         )
         _, quick, _ = self._measure(pts, np.array([self._odom.x, self._odom.y]))
-        if quick < self.config.quick_reject_fraction * bound:
-            self._retry_at_path_m = self._path_m + self.config.retry_distance_m
+        cfg = self.config
+        if quick < cfg.quick_reject_fraction * bound:
+            self._defer_prev, self._defer_m = None, 0.0
+            self._retry_at_path_m = self._path_m + cfg.retry_distance_m
             self._emit(
                 EventKind.ATTEMPT_FAILED_AT_ONCE,
                 anchor_odom=self._odom,
@@ -630,6 +668,17 @@ class IslandBuilder:
                 bound=bound,
             )
             return
+        rising = self._defer_prev is None or quick > self._defer_prev * (
+            1.0 + cfg.defer_rise_fraction
+        )
+        if cfg.defer_while_rising and rising and self._defer_m < cfg.defer_max_m:
+            # The place is getting better as the robot goes on: anchor further ahead.
+            self._defer_prev = quick
+            self._defer_t_s = self._t
+            self._defer_m += cfg.defer_step_m
+            self._retry_at_path_m = self._path_m + cfg.defer_step_m
+            return
+        self._defer_prev, self._defer_m = None, 0.0
         self._start_attempt(first=False)
 
     def _start_attempt(self, first: bool) -> None:
