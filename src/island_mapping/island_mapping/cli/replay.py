@@ -1,0 +1,137 @@
+"""islands replay: rebuild the island graph from a recorded run.
+
+  islands replay BAG --out DIR [--reference GRAPH] [--allow-damaged] [--builder-param K=V ...]
+
+Replays the recorded /clock, /odom, /ground_truth, /sonar/scan and /hall_follower/strategy of
+BAG (a rosbag2 directory such as `islands explore`'s run_bag/, or its .mcap file) into a fresh
+island builder and graph server, one message at a time (see island_mapping.replay), and writes
+
+  DIR/graph.json, DIR/graph.geojson, DIR/graph.graphml   the rebuilt map
+  DIR/replay.json                                          the comparison printed on stdout
+
+The comparison is against --reference, or else the recorded run's graph: BAG_DIR/../graph.json
+(what `islands explore --out` leaves beside run_bag/) when it exists. It also compares the
+builder's events with the recorded /island_builder/events. Exit code 0 when the graphs are
+identical (or there is nothing to compare with), 1 when they differ, 2 on bad input (missing or
+damaged bag: use --allow-damaged to replay the intact part of a truncated recording).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import yaml
+from island_msgs_py.json_io import GraphFormatError, atomic_write_text
+
+from island_mapping.cli import CliError
+from island_mapping.core.graph import GraphError, TopoGraph
+
+REFERENCE_NAME = "graph.json"
+REPORT_NAME = "replay.json"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.description = __doc__
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.add_argument("bag", help="rosbag2 directory (e.g. explore's run_bag/) or .mcap file")
+    parser.add_argument("--out", required=True, help="output directory (created)")
+    parser.add_argument("--reference", default=None,
+                        help="graph to compare with (default: BAG_DIR/../graph.json if present)")
+    parser.add_argument("--allow-damaged", action="store_true",
+                        help="replay the intact part of a truncated or corrupted bag (warned)")
+    parser.add_argument("--builder-param", action="append", default=[], metavar="NAME=VALUE",
+                        help="island_builder_node parameter override, e.g. builder.e_min_m=0.5 "
+                             "(VALUE parsed as YAML); repeatable")
+    parser.add_argument("--tol", type=float, default=1e-9,
+                        help="comparison tolerance (absolute up to 1, relative above) [-]")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+
+
+def default_reference(bag: Path) -> Path:
+    """Where `islands explore` leaves the recorded run's graph: beside the bag directory."""
+    bag_dir = bag if bag.is_dir() else bag.parent
+    return bag_dir.parent / REFERENCE_NAME
+
+
+def _builder_params(items: list[str]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        if not sep or not name.strip():
+            raise CliError(f"--builder-param {item!r}: expected NAME=VALUE")
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise CliError(f"--builder-param {item!r}: value is not YAML ({exc})") from None
+        if not isinstance(value, (bool, int, float, str)):
+            raise CliError(f"--builder-param {item!r}: value must be a bool, number or string")
+        out[name.strip()] = value
+    return out
+
+
+def _load_reference(path: Path) -> TopoGraph:
+    try:
+        return TopoGraph.load_any(path)
+    except (GraphFormatError, GraphError, OSError, ValueError) as exc:
+        raise CliError(f"reference graph {path}: {exc}") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    from island_mapping.replay import (
+        ReplayConfig,
+        ReplayError,
+        compare_events,
+        compare_graphs,
+        replay_run,
+    )
+
+    bag = Path(args.bag)
+    if not bag.exists():
+        raise CliError(f"{bag}: no such bag directory or .mcap file")
+    if not (args.tol >= 0):
+        raise CliError(f"--tol must be >= 0, got {args.tol}")
+    params = _builder_params(args.builder_param)
+    reference = Path(args.reference) if args.reference else default_reference(bag)
+    if args.reference and not reference.is_file():
+        raise CliError(f"--reference {reference}: no such file")
+    expected = _load_reference(reference) if reference.is_file() else None
+    out = Path(args.out)
+
+    def progress(done: int, total: int) -> None:
+        print(f"\rreplay: {done}/{total} messages", end="", file=sys.stderr, flush=True)
+
+    try:
+        res = replay_run(bag, ReplayConfig(allow_damaged=args.allow_damaged), params,
+                         None if args.quiet else progress)
+    except ReplayError as exc:
+        raise CliError(str(exc)) from None
+    finally:
+        if not args.quiet:
+            print(file=sys.stderr)
+    for w in res.warnings:
+        print(f"islands replay: warning: {w}", file=sys.stderr)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = res.graph.save_all(out)
+    report: dict[str, Any] = {
+        "bag": str(res.bag_path),
+        "out": {k: str(v) for k, v in paths.items()},
+        "messages": res.messages,
+        "islands": len(res.graph),
+        "edges": res.graph.num_edges,
+        "wall_seconds": round(res.wall_seconds, 2),
+        "warnings": res.warnings,
+        "reference": str(reference) if expected is not None else None,
+        "graph": (compare_graphs(expected, res.graph, args.tol).to_dict()
+                  if expected is not None else None),
+        "events": (compare_events(res.recorded_events, res.events)
+                   if res.recorded_events is not None else None),
+    }
+    text = json.dumps(report, indent=2)
+    atomic_write_text(out / REPORT_NAME, text + "\n")
+    print(text)
+    graph_report = report["graph"]
+    return 0 if graph_report is None or graph_report["identical"] else 1

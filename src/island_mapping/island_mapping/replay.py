@@ -1,0 +1,552 @@
+"""Replay a recorded run into a fresh island builder and graph server, and compare the maps.
+
+`replay_run(bag_path)` creates, on one in-process executor with `use_sim_time`, a new
+island_builder_node and topo_graph_server_node (memory only) and a player node that publishes
+the recorded /clock, /odom, /ground_truth, /sonar/scan and /hall_follower/strategy messages in
+the order they were recorded (see `recorded_order`: the order the run's nodes received them,
+not log-time order). Delivery is made deterministic: every subscription
+callback of the two nodes is wrapped with a counter, and after publishing ONE message the
+executor is spun until each subscription on that topic has run its callback for it. So no
+message is dropped, none overtakes another, and the builder sees exactly the recorded sequence
+whatever the machine load (the run itself is paced by nothing but these callbacks).
+
+The builder also drives (/cmd_vel) and calls /hall_follower/enable and /hall_follower/reset.
+Nobody answers in a replay: its calls are asynchronous (`call_async`), the futures simply stay
+pending, and its decisions (island_mapping.core.builder) do not depend on the answers, only on
+odometry, scans, ground truth and the recorded strategy. /topo_graph/add is answered by the
+in-process graph server; the replay waits for the service before the first message and, at the
+end, until the server holds every island and edge the builder accepted.
+
+A truncated or corrupted recording is an error by default (`ReplayError` naming the file and
+byte offset, from the bag reader); with `allow_damaged=True` the intact part is replayed and
+the damage is listed in `ReplayResult.warnings`.
+
+The builder's parameters are not in the recording: the replay uses the defaults (as
+`islands explore` does) unless `builder_params` overrides them; a run made with other builder
+parameters must be replayed with the same overrides.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rclpy
+from island_msgs_py.ros_params import ensure_ros_env
+from island_msgs_py.types import Edge, Island
+from mcap.reader import make_reader
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile
+from std_msgs.msg import String
+
+from island_mapping.bag.errors import BagError
+from island_mapping.bag.reader import BagMessage, BagReader, open_bag
+from island_mapping.bag.recover import scan_mcap
+from island_mapping.bag.schema import full_type_name
+from island_mapping.core.graph import TopoGraph
+from island_mapping.nodes.island_builder_node import LATCHED, STREAM_QOS, IslandBuilderNode
+from island_mapping.nodes.topo_graph_server_node import TopoGraphServerNode
+
+CLOCK_TOPIC = "/clock"
+ODOM_TOPIC = "/odom"
+TRUTH_TOPIC = "/ground_truth"
+SCAN_TOPIC = "/sonar/scan"
+STRATEGY_TOPIC = "/hall_follower/strategy"
+EVENTS_TOPIC = "/island_builder/events"
+REPLAYED_TOPICS = (CLOCK_TOPIC, ODOM_TOPIC, TRUTH_TOPIC, SCAN_TOPIC, STRATEGY_TOPIC)
+"""What the builder (and the graph server's clock) consume in a run."""
+REQUIRED_TOPICS = (ODOM_TOPIC, SCAN_TOPIC)
+"""Without these the builder decides nothing; the others are optional (warned when missing)."""
+EVENTS_QOS = QoSProfile(depth=1000)
+"""Deep enough to keep every builder event between two spins (a few per scan at most)."""
+SPIN_STEP_S = 0.01
+"""Longest single executor wait while waiting for a delivery [s] (returns at once when ready)."""
+
+
+class ReplayError(RuntimeError):
+    """The recording cannot be replayed (the message names the file or topic and the problem)."""
+
+
+@dataclass(frozen=True)
+class ReplayConfig:
+    """How a recording is replayed (the single source of the replay's defaults)."""
+
+    allow_damaged: bool = field(
+        default=False,
+        metadata={"help": "replay the intact part of a truncated/corrupted bag instead of "
+                          "failing [bool]"},
+    )
+    delivery_timeout_s: float = field(
+        default=10.0,
+        metadata={"help": "wall time to wait for the nodes to take one replayed message [s]"},
+    )
+    setup_timeout_s: float = field(
+        default=10.0,
+        metadata={"help": "wall time to wait for topic matching and the /topo_graph/add "
+                          "service before replaying, and for the last graph updates after [s]"},
+    )
+
+    def __post_init__(self) -> None:
+        for name in ("delivery_timeout_s", "setup_timeout_s"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ReplayError(f"ReplayConfig.{name} must be a positive number of seconds, "
+                                  f"got {value!r}")
+
+
+@dataclass
+class ReplayResult:
+    """What a replay produced: the graph, the builder's events and what was replayed."""
+
+    graph: TopoGraph
+    events: list[dict[str, Any]]
+    """The replayed builder's events (parsed /island_builder/events JSON), in order."""
+    recorded_events: list[dict[str, Any]] | None
+    """The recording's /island_builder/events, or None when it has none."""
+    messages: dict[str, int]
+    """Per replayed topic, how many messages were published."""
+    warnings: list[str]
+    bag_path: Path
+    wall_seconds: float
+
+    @property
+    def message_count(self) -> int:
+        return sum(self.messages.values())
+
+
+# ---- comparison ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class GraphComparison:
+    """Differences between an expected and an actual graph (empty = identical)."""
+
+    differences: tuple[str, ...]
+    expected_islands: int
+    actual_islands: int
+    expected_edges: int
+    actual_edges: int
+
+    @property
+    def identical(self) -> bool:
+        return not self.differences
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "identical": self.identical,
+            "expected": {"islands": self.expected_islands, "edges": self.expected_edges},
+            "actual": {"islands": self.actual_islands, "edges": self.actual_edges},
+            "differences": list(self.differences),
+        }
+
+
+def _close(a: float, b: float, tol: float) -> bool:
+    return abs(a - b) <= tol * max(1.0, abs(a), abs(b))
+
+
+def _island_diffs(e: Island, a: Island, tol: float) -> list[str]:
+    out: list[str] = []
+    where = f"island {e.id}"
+    if e.model_type != a.model_type:
+        out.append(f"{where}: model type {e.model_type.value} != {a.model_type.value}")
+    es, as_ = e.model.segments, a.model.segments
+    if es.shape != as_.shape:
+        out.append(f"{where}: {es.shape[0]} segments != {as_.shape[0]}")
+    elif es.size and float(np.max(np.abs(es - as_))) > tol:
+        out.append(f"{where}: segments differ by up to {float(np.max(np.abs(es - as_))):.3g} m")
+    if not _close(e.r, a.r, tol):
+        out.append(f"{where}: r {e.r!r} != {a.r!r}")
+    if not _close(e.built_at_s, a.built_at_s, tol):
+        out.append(f"{where}: built_at_s {e.built_at_s!r} != {a.built_at_s!r}")
+    if e.frame_id != a.frame_id:
+        out.append(f"{where}: frame {e.frame_id!r} != {a.frame_id!r}")
+    if (e.origin_truth is None) != (a.origin_truth is None):
+        out.append(f"{where}: origin_truth {e.origin_truth} != {a.origin_truth}")
+    elif e.origin_truth is not None and a.origin_truth is not None:
+        pe, pa = e.origin_truth, a.origin_truth
+        if not all(_close(x, y, tol) for x, y in
+                   ((pe.x, pa.x), (pe.y, pa.y), (pe.theta, pa.theta))):
+            out.append(f"{where}: origin_truth {pe} != {pa}")
+    return out
+
+
+def _edge_diffs(e: Edge, a: Edge, tol: float) -> list[str]:
+    out: list[str] = []
+    where = f"edge {e.source}->{e.target}"
+    if str(e.strategy) != str(a.strategy):
+        out.append(f"{where}: strategy {str(e.strategy)!r} != {str(a.strategy)!r}")
+    for name in ("weight", "length_m", "expected_error_m"):
+        ve, va = float(getattr(e, name)), float(getattr(a, name))
+        if not _close(ve, va, tol):
+            out.append(f"{where}: {name} {ve!r} != {va!r}")
+    return out
+
+
+def compare_graphs(expected: TopoGraph, actual: TopoGraph, tol: float = 1e-9) -> GraphComparison:
+    """Compare island by island (id, type, segments [m], r, time, frame, origin_truth) and edge
+    by edge (source, target, strategy text, weight, length, expected error), to `tol` (absolute
+    for values up to 1, relative above)."""
+    if not (math.isfinite(tol) and tol >= 0):
+        raise ValueError(f"compare_graphs: tol must be a finite number >= 0, got {tol}")
+    diffs: list[str] = []
+    e_ids, a_ids = set(expected.island_ids()), set(actual.island_ids())
+    for i in sorted(e_ids - a_ids):
+        diffs.append(f"island {i}: missing from the replay")
+    for i in sorted(a_ids - e_ids):
+        diffs.append(f"island {i}: only in the replay")
+    for i in sorted(e_ids & a_ids):
+        diffs.extend(_island_diffs(expected.get_island(i), actual.get_island(i), tol))
+    e_edges = {(x.source, x.target): x for x in expected.edges()}
+    a_edges = {(x.source, x.target): x for x in actual.edges()}
+    for k in sorted(e_edges.keys() - a_edges.keys()):
+        diffs.append(f"edge {k[0]}->{k[1]}: missing from the replay")
+    for k in sorted(a_edges.keys() - e_edges.keys()):
+        diffs.append(f"edge {k[0]}->{k[1]}: only in the replay")
+    for k in sorted(e_edges.keys() & a_edges.keys()):
+        diffs.extend(_edge_diffs(e_edges[k], a_edges[k], tol))
+    return GraphComparison(tuple(diffs), len(expected), len(actual),
+                           expected.num_edges, actual.num_edges)
+
+
+def compare_events(
+    recorded: list[dict[str, Any]], replayed: list[dict[str, Any]]
+) -> dict[str, Any]:
+    """Event streams compared in order (JSON values, so floats must be bit-identical)."""
+    first = next((k for k, (a, b) in enumerate(zip(recorded, replayed, strict=False))
+                  if a != b), None)
+    if first is None and len(recorded) != len(replayed):
+        first = min(len(recorded), len(replayed))
+    out: dict[str, Any] = {
+        "identical": first is None,
+        "recorded": len(recorded),
+        "replayed": len(replayed),
+    }
+    if first is not None:
+        out["first_difference_index"] = first
+        out["recorded_kind"] = recorded[first].get("kind") if first < len(recorded) else None
+        out["replayed_kind"] = replayed[first].get("kind") if first < len(replayed) else None
+    return out
+
+
+# ---- the replay ------------------------------------------------------------------------------
+
+
+class _DeliveryCounter:
+    """Counts, per topic, the subscription callbacks the watched nodes have run.
+
+    Each subscription's callback is wrapped (the executor reads `sub.callback` when it runs
+    it), so a count goes up only after the node's own callback returned.
+    """
+
+    def __init__(self, nodes: Iterable[Node]) -> None:
+        self.count: dict[str, int] = {}
+        self.subscriptions: dict[str, int] = {}
+        for node in nodes:
+            for sub in node.subscriptions:
+                topic = sub.topic_name
+                self.subscriptions[topic] = self.subscriptions.get(topic, 0) + 1
+                self.count.setdefault(topic, 0)
+                sub.callback = self._wrap(topic, sub.callback)
+
+    def _wrap(self, topic: str, callback: Callable[..., Any]) -> Callable[..., Any]:
+        def counted(*args: Any) -> Any:
+            try:
+                return callback(*args)
+            finally:
+                self.count[topic] += 1
+
+        return counted
+
+
+class _Replayer:
+    """The nodes, the player's publishers and the delivery-checked publishing loop."""
+
+    def __init__(
+        self,
+        ctx: Context,
+        reader: BagReader,
+        config: ReplayConfig,
+        builder_params: Mapping[str, Any] | None,
+    ) -> None:
+        self.ctx = ctx
+        self.reader = reader
+        self.config = config
+        sim_time = Parameter("use_sim_time", value=True)
+        overrides = [sim_time] + [Parameter(k, value=v) for k, v in (builder_params or {}).items()]
+        # No parameter services: nobody can reach them in a replay, and fewer entities make
+        # every executor wait cheaper (one per replayed message).
+        self.builder = IslandBuilderNode(context=ctx, parameter_overrides=overrides,
+                                         start_parameter_services=False)
+        self.server = TopoGraphServerNode(
+            context=ctx, parameter_overrides=[sim_time, Parameter("storage_path", value="")]
+        )
+        self.player = Node("islands_replay_player", context=ctx,
+                           start_parameter_services=False)
+        self.events: list[dict[str, Any]] = []
+        self.bad_events = 0
+        self.player.create_subscription(String, EVENTS_TOPIC, self._on_event, EVENTS_QOS)
+        self.topics = [t for t in REPLAYED_TOPICS if t in reader.topics]
+        self.publishers: dict[str, Any] = {}
+        for topic in self.topics:
+            type_name = reader.topics[topic].type_name
+            cls = _message_class(topic, type_name)
+            qos = LATCHED if topic == STRATEGY_TOPIC else STREAM_QOS
+            self.publishers[topic] = self.player.create_publisher(cls, topic, qos)
+        self.counter = _DeliveryCounter([self.builder, self.server])
+        self.executor = SingleThreadedExecutor(context=ctx)
+        for n in (self.player, self.builder, self.server):
+            self.executor.add_node(n)
+        self.published: dict[str, int] = {t: 0 for t in self.topics}
+
+    def _on_event(self, msg: String) -> None:
+        try:
+            event = json.loads(msg.data)
+        except json.JSONDecodeError:
+            self.bad_events += 1
+            return
+        self.events.append(event)
+
+    def _spin_until(self, done: Callable[[], bool], timeout_s: float) -> bool:
+        deadline = time.monotonic() + timeout_s
+        while not done():
+            if time.monotonic() > deadline:
+                return False
+            self.executor.spin_once(timeout_sec=SPIN_STEP_S)
+        return True
+
+    def wait_ready(self) -> None:
+        """Every replayed topic matched by the nodes, and /topo_graph/add available."""
+        def ready() -> bool:
+            return self.builder.add_cli.service_is_ready() and all(
+                p.get_subscription_count() >= self.counter.subscriptions.get(t, 0)
+                for t, p in self.publishers.items()
+            )
+
+        if not self._spin_until(ready, self.config.setup_timeout_s):
+            matched = {t: p.get_subscription_count() for t, p in self.publishers.items()}
+            raise ReplayError(
+                f"replay nodes not connected within {self.config.setup_timeout_s:g} s: "
+                f"/topo_graph/add ready={self.builder.add_cli.service_is_ready()}, "
+                f"subscriptions matched per topic {matched}"
+            )
+        self.check_isolated()
+
+    def check_isolated(self) -> None:
+        """No other process may publish what the builder consumes (it would change the map)."""
+        foreign = {t: self.player.count_publishers(t) - 1 for t in self.publishers}
+        foreign = {t: n for t, n in foreign.items() if n > 0}
+        if foreign:
+            domain = os.environ.get("ROS_DOMAIN_ID", "0")
+            raise ReplayError(
+                f"other publishers on the replayed topics in ROS domain {domain} "
+                f"({', '.join(f'{t}: {n}' for t, n in sorted(foreign.items()))}): a running "
+                "simulation would feed the replayed builder; set ROS_DOMAIN_ID to a free domain"
+            )
+
+    def publish(self, m: BagMessage) -> None:
+        """Publish one recorded message and spin until every node subscribed to it took it."""
+        expected = self.counter.count.get(m.topic, 0) + self.counter.subscriptions.get(m.topic, 0)
+        self.publishers[m.topic].publish(m.data)
+        self.published[m.topic] += 1
+        if not self._spin_until(lambda: self.counter.count.get(m.topic, 0) >= expected,
+                                self.config.delivery_timeout_s):
+            raise ReplayError(
+                f"{self.reader.path}: message #{self.published[m.topic]} on {m.topic} "
+                f"(log time {m.log_time_ns} ns) was not delivered to the replay nodes within "
+                f"{self.config.delivery_timeout_s:g} s"
+            )
+        if self.counter.count.get(m.topic, 0) > expected:
+            self.check_isolated()
+            raise ReplayError(f"the replay nodes received more {m.topic} messages than were "
+                              "replayed: another publisher is feeding them")
+
+    def finish(self) -> None:
+        """Spin until the server holds what the builder accepted and every event arrived."""
+        core = self.builder.builder
+
+        def settled() -> bool:
+            return (
+                len(self.server.graph) >= len(core.islands)
+                and self.server.graph.num_edges >= len(core.edges)
+                and len(self.events) + self.bad_events >= sum(core.counts.values())
+            )
+
+        if not self._spin_until(settled, self.config.setup_timeout_s):
+            raise ReplayError(
+                f"after the replay the graph server holds {len(self.server.graph)} islands and "
+                f"{self.server.graph.num_edges} edges but the builder accepted "
+                f"{len(core.islands)} and {len(core.edges)} (not settled within "
+                f"{self.config.setup_timeout_s:g} s)"
+            )
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        for n in (self.player, self.builder, self.server):
+            n.destroy_node()
+
+
+def _message_class(topic: str, type_name: str) -> Any:
+    from island_mapping.bag.schema import message_class
+
+    try:
+        return message_class(type_name)
+    except BagError as exc:
+        raise ReplayError(f"{topic}: cannot load message type {type_name}: {exc}") from None
+
+
+def recorded_order(reader: BagReader, topics: Iterable[str]) -> Iterator[BagMessage]:
+    """The messages of `topics` in the order they were recorded (file order, file by file).
+
+    This is the order in which the recorder received them during the run, and the order the
+    run's builder received them in too: the simulator publishes /odom one physics step past
+    the scan it is sensing (e.g. /odom at t + 20 ms arrives before /sonar/scan at t), so the
+    builder processes each scan with that later odometry; log-time order would hand the
+    builder a different interleaving from the one it saw. Files the reader found damaged
+    (only opened with allow_damaged) yield their intact messages, from a sequential scan.
+    """
+    wanted = set(topics)
+    damaged = {Path(d.path) for d in reader.damage}
+    for path in reader.files:
+        if path in damaged:
+            yield from _scanned(path, wanted)
+            continue
+        with path.open("rb") as fh:
+            it = make_reader(fh, validate_crcs=True).iter_messages(
+                topics=sorted(wanted), log_time_order=False)
+            while True:
+                try:
+                    schema, channel, msg = next(it)
+                except StopIteration:
+                    break
+                except Exception as exc:  # a damaged chunk that the summary did not reveal
+                    err = scan_mcap(path).first_error()
+                    if err is None:
+                        raise BagError(f"{path}: cannot read messages: {exc}") from None
+                    if not reader.allow_damaged:
+                        raise err from None
+                    reader.damage.append(err)
+                    break
+                if schema is not None:
+                    yield BagMessage(channel.topic, full_type_name(schema.name), msg.log_time,
+                                     msg.data)
+
+
+def _scanned(path: Path, wanted: set[str]) -> Iterator[BagMessage]:
+    scan = scan_mcap(path)
+    for m in scan.messages:
+        ch = scan.channels.get(m.channel_id)
+        if ch is None or ch.topic not in wanted:
+            continue
+        schema = scan.schemas.get(ch.schema_id)
+        if schema is not None:
+            yield BagMessage(ch.topic, full_type_name(schema.name), m.log_time, m.data)
+
+
+def _recorded_events(reader: BagReader) -> list[dict[str, Any]] | None:
+    if EVENTS_TOPIC not in reader.topics:
+        return None
+    out: list[dict[str, Any]] = []
+    for m in reader.messages([EVENTS_TOPIC]):
+        try:
+            out.append(json.loads(m.deserialize().data))
+        except (BagError, json.JSONDecodeError):
+            continue
+    return out
+
+
+def open_recording(
+    bag_path: str | os.PathLike[str], allow_damaged: bool = False
+) -> tuple[BagReader, list[str]]:
+    """Open a bag for replay: (reader, warnings). Damage is a ReplayError unless allowed."""
+    try:
+        reader = open_bag(bag_path, allow_damaged=allow_damaged)
+    except BagError as exc:
+        raise ReplayError(f"cannot replay {bag_path}: {exc}") from None
+    warnings: list[str] = []
+    missing = [t for t in REQUIRED_TOPICS if t not in reader.topics]
+    if missing:
+        raise ReplayError(
+            f"{reader.path} has no {', '.join(missing)}: nothing for the island builder "
+            f"(topics: {', '.join(sorted(reader.topics)) or 'none'})"
+        )
+    for t in REPLAYED_TOPICS:
+        if t not in reader.topics and t not in REQUIRED_TOPICS:
+            warnings.append(f"{reader.path} has no {t}; replaying without it")
+    return reader, warnings
+
+
+def replay_run(
+    bag_path: str | os.PathLike[str],
+    config: ReplayConfig | None = None,
+    builder_params: Mapping[str, Any] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> ReplayResult:
+    """Replay a recording into a fresh builder and graph server (see the module docstring).
+
+    `builder_params`: island_builder_node parameter overrides (dotted names, e.g.
+    {"builder.e_min_m": 0.5}). `progress(done, total)` is called every few hundred messages.
+    Raises ReplayError for an unreadable, damaged (unless allowed) or unsuitable recording.
+    """
+    cfg = config if config is not None else ReplayConfig()
+    reader, warnings = open_recording(bag_path, cfg.allow_damaged)
+    ensure_ros_env()
+    wall0 = time.monotonic()
+    ctx = Context()
+    rclpy.init(context=ctx)
+    rep: _Replayer | None = None
+    try:
+        rep = _Replayer(ctx, reader, cfg, builder_params)
+        rep.wait_ready()
+        total = sum(reader.topics[t].message_count for t in rep.topics)
+        done = 0
+        try:
+            for m in recorded_order(reader, rep.topics):
+                rep.publish(m)
+                done += 1
+                if progress is not None and done % 500 == 0:
+                    progress(done, total)
+        except BagError as exc:
+            raise ReplayError(f"cannot replay {reader.path}: {exc}") from None
+        rep.finish()
+        if progress is not None:
+            progress(done, total)
+        if rep.builder.bad_msg_count:
+            warnings.append(f"the builder ignored {rep.builder.bad_msg_count} bad messages")
+        if rep.bad_events:
+            warnings.append(f"{rep.bad_events} builder events were not JSON")
+        graph = TopoGraph.from_parts(rep.server.graph.islands(), rep.server.graph.edges())
+        recorded_events = _recorded_events(reader)
+        damage = dict.fromkeys(str(d) for d in reader.damage)  # unique, in order
+        warnings[:0] = [f"damaged recording, replayed only its intact part: {d}" for d in damage]
+        return ReplayResult(
+            graph=graph,
+            events=list(rep.events),
+            recorded_events=recorded_events,
+            messages=dict(rep.published),
+            warnings=warnings,
+            bag_path=reader.path,
+            wall_seconds=time.monotonic() - wall0,
+        )
+    finally:
+        if rep is not None:
+            rep.close()
+        ctx.try_shutdown()
+
+
+def replay_into_builder(
+    bag_path: str | os.PathLike[str],
+    config: ReplayConfig | None = None,
+    builder_params: Mapping[str, Any] | None = None,
+) -> TopoGraph:
+    """The graph a fresh builder and graph server build from the recording (see replay_run)."""
+    return replay_run(bag_path, config, builder_params).graph
