@@ -1159,8 +1159,13 @@ def score_ring_readings(
     return RingScores(r, fisher, nseg)
 
 
+# A single reading with R below this is "poorly constrained" (a corridor-like view).
+RING_LOW_R = 0.3
+
+
 def ring_metrics(readings: SonarReadings, scores: RingScores) -> dict[str, object]:
-    """Per-label count, mean and median of R and of the Fisher score (JSON-ready)."""
+    """Per-label count, mean and median of R and of the Fisher score, the fraction of readings
+    with R < RING_LOW_R (JSON-ready)."""
     labels = np.asarray(readings.labels)
     per: dict[str, object] = {}
     for lab in sorted(set(readings.labels)):
@@ -1172,9 +1177,11 @@ def ring_metrics(readings: SonarReadings, scores: RingScores) -> dict[str, objec
             "mean_fisher": round(float(np.mean(scores.fisher[sel])), 6),
             "median_fisher": round(float(np.median(scores.fisher[sel])), 6),
             "mean_segments": round(float(np.mean(scores.segments[sel])), 3),
+            "frac_r_below_low": round(float(np.mean(scores.r[sel] < RING_LOW_R)), 4),
         }
     return {
         "readings": int(labels.size),
         "mean_r": round(float(np.mean(scores.r)), 6) if labels.size else None,
+        "low_r_threshold": RING_LOW_R,
         "per_label": per,
     }
