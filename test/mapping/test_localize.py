@@ -169,3 +169,28 @@ def test_cone_aware_sonar_localization_recovers_an_offset_that_axis_points_miss(
     assert math.hypot(axis.pose.x - truth.x, axis.pose.y - truth.y) > 2 * err_aware
     with pytest.raises(LocalizeError, match="beams"):
         localize_sonar(ROOM, ranges[:5], beams, start, cfg)
+
+
+def test_sonar_localization_pairs_readings_with_the_visible_face_of_a_thin_wall() -> None:
+    from island_mapping.core.localize import SonarBeams, localize_sonar
+
+    # A 0.1 m thick partition: its hidden face is 0.1 m behind the visible one, within reach of
+    # nearest-segment pairing after a 10-15 cm offset.
+    thin = np.array([[-0.05, -2.0, -0.05, 0.5], [0.05, -2.0, 0.05, 0.5], [-0.05, 0.5, 0.05, 0.5]])
+    walls = np.concatenate([ROOM, thin])
+    sonar = SonarModel()
+    world = World(walls)
+    beams = SonarBeams(sonar.angles_rad, sonar.ray_offsets_rad, sonar.config.ring_radius_m,
+                       sonar.config.reflect_deg, sonar.config.range_min_m,
+                       sonar.config.range_max_m)
+    rng = np.random.default_rng(5)
+    cfg = LocalizeConfig(estimate_heading=False)
+    errors = []
+    for i in range(12):
+        truth = Pose2D(0.6 + 0.1 * (i % 3), -1.2 + 0.2 * (i % 4), 0.0)
+        ranges = sonar.scan(world, truth, rng)
+        a = math.pi + rng.uniform(-0.3, 0.3)  # towards the partition: points cross its face
+        start = Pose2D(truth.x + 0.14 * math.cos(a), truth.y + 0.14 * math.sin(a), 0.0)
+        res = localize_sonar(walls, ranges, beams, start, cfg)
+        errors.append(math.hypot(res.pose.x - truth.x, res.pose.y - truth.y))
+    assert max(errors) < 0.02, errors

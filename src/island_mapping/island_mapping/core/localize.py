@@ -36,6 +36,8 @@ import numpy.typing as npt
 from island_msgs_py.types import FloatArray, LineModel, Pose2D, as_segments, wrap_angle
 from island_sim.core.world import raycast
 
+IntArray = npt.NDArray[np.int64]
+
 
 class LocalizeError(ValueError):
     """A LocalizeConfig value or argument is invalid (the message names it)."""
@@ -199,7 +201,7 @@ def localize(
     if seg.shape[0] == 0 or pts.shape[0] < cfg.min_points:
         return LocalizationResult(initial, math.inf, 0, False, 0.0, 0.0)
     reach = float(np.max(np.hypot(pts[:, 0], pts[:, 1])))
-    return _iterate(seg, lambda pose: _transform(pts, pose), reach, initial, cfg)
+    return _iterate(seg, lambda pose, _seg: (_transform(pts, pose), None), reach, initial, cfg)
 
 
 @dataclass(frozen=True, eq=False)
@@ -233,8 +235,10 @@ def localize_sonar(
     on the axis displaces it off the wall by up to tens of centimetres. Each iteration therefore
     places reading b where the MODEL, seen from the current pose, would have echoed: along the
     cone ray with the nearest valid hit (incidence within reflect_deg, within the range limits;
-    the axis when no ray echoes), at the measured range from the transducer. The correction
-    step, weights and convergence test are those of `localize`.
+    the axis when no ray echoes), at the measured range from the transducer, and pairs it with
+    the wall that ray hits (visibility-aware: never the hidden back face of a thin wall; the
+    nearest segment when no ray echoes). The correction step, weights and convergence test are
+    those of `localize`.
     """
     cfg = config if config is not None else LocalizeConfig()
     seg = _model_segments(model)
@@ -253,7 +257,7 @@ def localize_sonar(
     cos_min = math.cos(math.radians(beams.reflect_deg)) - 1e-12
     n_b, n_c = axis.shape[0], offs.shape[0]
 
-    def place(pose: FloatArray) -> FloatArray:
+    def place(pose: FloatArray, seg: FloatArray) -> tuple[FloatArray, IntArray]:
         bearing = pose[2] + axis
         tx = pose[0] + beams.ring_radius_m * np.cos(bearing)
         ty = pose[1] + beams.ring_radius_m * np.sin(bearing)
@@ -264,9 +268,12 @@ def localize_sonar(
         valid = (hits.cos_incidence.reshape(n_b, n_c) >= cos_min) & (d >= beams.range_min_m)
         d = np.where(valid, d, np.inf)
         best = np.argmin(d, axis=1)
-        chosen = np.where(np.isfinite(d[np.arange(n_b), best]), offs[best], 0.0)
+        echoes = np.isfinite(d[np.arange(n_b), best])
+        chosen = np.where(echoes, offs[best], 0.0)
         phi = bearing + chosen
-        return np.stack([tx + echo * np.cos(phi), ty + echo * np.sin(phi)], axis=1)
+        wall = np.where(echoes, hits.segment.reshape(n_b, n_c)[np.arange(n_b), best], -1)
+        pts = np.stack([tx + echo * np.cos(phi), ty + echo * np.sin(phi)], axis=1)
+        return pts, wall.astype(np.int64)
 
     reach = float(np.max(r))
     return _iterate(seg, place, reach, initial, cfg)
@@ -274,12 +281,13 @@ def localize_sonar(
 
 def _iterate(
     seg: FloatArray,
-    place: Callable[[FloatArray], FloatArray],
+    place: Callable[[FloatArray, FloatArray], tuple[FloatArray, IntArray | None]],
     reach_m: float,
     initial: Pose2D,
     cfg: LocalizeConfig,
 ) -> LocalizationResult:
-    """The correction loop; `place(pose)` gives the data points (N, 2) in the model frame."""
+    """The correction loop; `place(pose, segments)` gives the data points (N, 2) in the model
+    frame and optionally (N,) the segment each must be paired with (-1: the nearest)."""
     pose = initial.as_array()
     # Only segments that a matched point could reach matter.
     near = _segment_distance_to(pose[0:2], seg) <= reach_m + cfg.max_match_dist_m + 1.0
@@ -291,8 +299,8 @@ def _iterate(
     iterations = 0
     steps_small = False
     for iterations in range(1, cfg.max_iterations + 1):  # noqa: B007 (used after the loop)
-        world = place(pose)
-        idx, foot, dist = closest_on_segments(world, seg)
+        world, assoc = place(pose, seg)
+        idx, foot, dist = _pair(world, seg, assoc)
         ok = dist <= cfg.max_match_dist_m
         if int(ok.sum()) < cfg.min_points:
             break
@@ -325,8 +333,8 @@ def _iterate(
             break
 
     pose[2] = wrap_angle(float(pose[2]))
-    world = place(pose)
-    idx, foot, dist = closest_on_segments(world, seg)
+    world, assoc = place(pose, seg)
+    idx, foot, dist = _pair(world, seg, assoc)
     ok = dist <= cfg.max_match_dist_m
     matched = float(ok.mean())
     if not np.any(ok):
@@ -343,6 +351,27 @@ def _iterate(
     return LocalizationResult(
         Pose2D.from_array(pose), residual, iterations, bool(converged), matched, constraint
     )
+
+
+def _pair(
+    points: FloatArray, seg: FloatArray, assoc: IntArray | None
+) -> tuple[IntArray, FloatArray, FloatArray]:
+    """Nearest segments, overridden by `assoc` where it names one (>= 0)."""
+    idx, foot, dist = closest_on_segments(points, seg)
+    if assoc is None:
+        return idx, foot, dist
+    has = np.flatnonzero(assoc >= 0)
+    if has.size:
+        s = seg[assoc[has]]
+        a, d = s[:, 0:2], s[:, 2:4] - s[:, 0:2]
+        rel = points[has] - a
+        dd = np.sum(d * d, axis=1)
+        t = np.clip(np.sum(rel * d, axis=1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+        f = a + t[:, None] * d
+        idx[has] = assoc[has]
+        foot[has] = f
+        dist[has] = np.hypot(points[has, 0] - f[:, 0], points[has, 1] - f[:, 1])
+    return idx, foot, dist
 
 
 def _segment_distance_to(point: FloatArray, seg: FloatArray) -> FloatArray:
