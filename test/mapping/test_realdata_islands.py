@@ -156,3 +156,36 @@ def test_bad_inputs_are_clear_errors() -> None:
         rd.RealIslandConfig(beams=32)
     with pytest.raises(rd.RealDataError, match="ranges"):
         rd.build_islands_offline(np.zeros((3, 180)), np.zeros((2, 3)), np.zeros(3))
+
+
+def test_sonar_like_scans_localize_in_laser_built_islands(
+    intel: tuple[rd.PoseTrack, np.ndarray, rd.Relations],
+) -> None:
+    track, ranges, _ = intel
+    n = 30
+    rows = track.scan_rows[:n]
+    cfg = rd.RealIslandConfig(localize_beams=16)
+    fit_sizes: list[int] = []
+    fix_sizes: list[int] = []
+    fit = rd.core_fitter(cfg.line_fit)
+    loc = rd.core_localizer(cfg.localize)
+
+    def fitter(points: np.ndarray) -> LineModel:
+        fit_sizes.append(points.shape[0])
+        return fit(points)
+
+    def localizer(model: LineModel, points: np.ndarray, guess: np.ndarray) -> rd.ScanFix:
+        fix_sizes.append(points.shape[0])
+        return loc(model, points, guess)
+
+    run = rd.build_islands_offline(ranges[:n], track.raw[rows], track.times_s[rows], cfg,
+                                   localizer=localizer, fitter=fitter)
+    assert len(run.islands) >= 1
+    assert max(fit_sizes) > 100  # island models come from the full laser scans
+    assert fix_sizes and max(fix_sizes) > 16  # window alignment uses laser scans ...
+    # ... while every scan localized in an island was localized from at most 16 beams.
+    localized = int((run.scan_island >= 0).sum())
+    assert localized >= 1
+    assert sum(1 for k in fix_sizes if k <= 16) >= localized
+    with pytest.raises(rd.RealDataError, match="localize_beams"):
+        rd.RealIslandConfig(localize_beams=7)

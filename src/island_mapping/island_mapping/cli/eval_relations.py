@@ -1,7 +1,8 @@
 """`islands eval-relations`: islands built offline on a CARMEN log, scored on Kuemmerle relations.
 
   islands eval-relations --log intel.gfs.log --relations intel.relations --out DIR
-                         [--beams 180|24|16] [--seed N] [--bridge-s S] [--max-scans N]
+                         [--beams 180|24|16] [--localize-beams 24|16] [--seed N]
+                         [--bridge-s S] [--max-scans N]
 
 Writes DIR/metrics.json (covered_relations, mean/median translation error [m], mean/median
 rotation error [deg] inside islands, the GMapping trajectory on the same relations and on all of
@@ -35,6 +36,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, help="output directory")
     parser.add_argument("--beams", type=int, default=180, choices=rd.SUPPORTED_BEAMS,
                         help="180 = the laser; 24 or 16 = sonar-like mode (beams kept per scan)")
+    parser.add_argument("--localize-beams", type=int, default=0, choices=(0, *rd.SUPPORTED_BEAMS),
+                        help="beams used to localize scans in the islands (0 = --beams): "
+                             "--beams 180 --localize-beams 24 localizes sonar-like scans in "
+                             "laser-built islands")
     parser.add_argument("--seed", type=int, default=0,
                         help="recorded only: the pipeline has no random step")
     parser.add_argument("--bridge-s", type=float, default=DEFAULT_BRIDGE_S,
@@ -75,7 +80,7 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
     if len(relations) == 0:
         raise CliError(f"{args.relations}: no relations")
     n = log.n_scans if args.max_scans is None else min(args.max_scans, log.n_scans)
-    cfg = rd.sonar_like_config(args.beams)
+    cfg = dataclasses.replace(rd.sonar_like_config(args.beams), localize_beams=args.localize_beams)
     run = rd.build_islands_offline(log.ranges_m[:n], log.raw_odometry[:n], log.times_s[:n], cfg)
     scan_t = log.times_s[:n]
     strict = rd.score_relations(run, scan_t, relations, track)
@@ -92,6 +97,7 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
         "accepted_by": {t: sum(1 for i in run.islands if i.island.model_type.value == t)
                         for t in ("line", "fisher")},
         "beams": args.beams,
+        "localize_beams": args.localize_beams or args.beams,
         "seed": args.seed,
         "scan_match_tolerance_s": rd.SCAN_MATCH_TOLERANCE_S,
         "config": _config_summary(cfg),

@@ -526,6 +526,11 @@ class RealIslandConfig:
     max_range_m: float = field(
         default=10.0, metadata={"help": "readings beyond this are ignored (no return) [m]"}
     )
+    localize_beams: int = field(
+        default=0,
+        metadata={"help": "beams kept for localizing scans in islands (0 = `beams`); e.g. 24 "
+                  "localizes sonar-like scans (6.5 m range) in islands built from the laser [-]"},
+    )
     half_window_scans: int = field(
         default=2,
         metadata={"help": "an island model accumulates the scans this many steps before and "
@@ -599,6 +604,9 @@ class RealIslandConfig:
         if self.beams not in SUPPORTED_BEAMS:
             raise RealDataError(f"RealIslandConfig.beams: expected one of {SUPPORTED_BEAMS}, "
                                 f"got {self.beams}")
+        if self.localize_beams not in (0, *SUPPORTED_BEAMS):
+            raise RealDataError(f"RealIslandConfig.localize_beams: expected 0 or one of "
+                                f"{SUPPORTED_BEAMS}, got {self.localize_beams}")
         for name in ("max_range_m", "coverage_radius_m", "relocalize_radius_m", "max_residual_m",
                      "max_correction_m", "max_correction_deg"):
             v = getattr(self, name)
@@ -710,13 +718,22 @@ def core_fitter(config: LineFitConfig) -> Fitter:
 
 
 class _Scans:
-    """Per-scan robot-frame points of the kept beams (computed once)."""
+    """Per-scan robot-frame points of the kept beams (computed once): `points` build island
+    models, `fix_points` (the `localize_beams` subset, if set) are localized in them."""
 
     def __init__(self, ranges_m: FloatArray, cfg: RealIslandConfig) -> None:
         n_total = ranges_m.shape[1]
-        keep = beam_subset(n_total, min(cfg.beams, n_total))
-        angles = beam_angles(n_total)[keep]
-        self.points = [scan_points(r[keep], angles, cfg.max_range_m) for r in ranges_m]
+        angles = beam_angles(n_total)
+
+        def points(n_keep: int, max_range_m: float) -> list[FloatArray]:
+            keep = beam_subset(n_total, min(n_keep, n_total))
+            return [scan_points(r[keep], angles[keep], max_range_m) for r in ranges_m]
+
+        self.points = points(cfg.beams, cfg.max_range_m)
+        if cfg.localize_beams and cfg.localize_beams != cfg.beams:
+            self.fix_points = points(cfg.localize_beams, min(cfg.max_range_m, SONAR_LIKE_RANGE_M))
+        else:
+            self.fix_points = self.points
 
 
 def voxel_thin(points: FloatArray, cell_m: float) -> FloatArray:
@@ -802,7 +819,7 @@ def build_islands_offline(
     next_attempt = 0
 
     def try_fix(k: int, i: int, guess: FloatArray) -> FloatArray | None:
-        pts = scans.points[i]
+        pts = scans.fix_points[i]
         fix = loc(islands[k].island.model, pts, guess)
         if not _fix_ok(fix, guess, cfg, pts, islands[k].island.model):
             return None
