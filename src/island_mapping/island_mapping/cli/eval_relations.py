@@ -17,6 +17,7 @@ import argparse
 import dataclasses
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +61,16 @@ def _stats(score: rd.RelationScore) -> dict[str, Any]:
     }
 
 
+# Progress goes to stderr every this many scans (a full Intel run takes a few minutes).
+PROGRESS_EVERY_SCANS = 100
+
+
+def _progress(scan: int, scans: int, islands: int) -> None:
+    if scan % PROGRESS_EVERY_SCANS == 0:
+        print(f"islands eval-relations: scan {scan}/{scans}, {islands} islands", file=sys.stderr,
+              flush=True)
+
+
 def evaluate(args: argparse.Namespace) -> dict[str, Any]:
     """Run the evaluation and return metrics (no files written)."""
     from island_mapping.bag.carmen import read_carmen
@@ -81,7 +92,8 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
         raise CliError(f"{args.relations}: no relations")
     n = log.n_scans if args.max_scans is None else min(args.max_scans, log.n_scans)
     cfg = dataclasses.replace(rd.sonar_like_config(args.beams), localize_beams=args.localize_beams)
-    run = rd.build_islands_offline(log.ranges_m[:n], log.raw_odometry[:n], log.times_s[:n], cfg)
+    run = rd.build_islands_offline(log.ranges_m[:n], log.raw_odometry[:n], log.times_s[:n], cfg,
+                                   progress=_progress)
     scan_t = log.times_s[:n]
     strict = rd.score_relations(run, scan_t, relations, track)
     bridged = rd.score_relations(run, scan_t, relations, track, bridge_s=args.bridge_s)

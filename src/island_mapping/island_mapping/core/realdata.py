@@ -783,6 +783,7 @@ def build_islands_offline(
     localizer: Localizer | None = None,
     evaluator: Evaluator | None = None,
     fitter: Fitter | None = None,
+    progress: Callable[[int, int, int], None] | None = None,
 ) -> IslandRun:
     """Walk a log scan by scan as the exploring robot would, building islands by eq. 3.
 
@@ -795,6 +796,7 @@ def build_islands_offline(
     around it are accumulated in its frame (raw odometry, optionally refined by localizing each
     against the growing model), lines are fitted and every model type is evaluated at the origin;
     accepted when max_i R_i/T_i > E_min/epsilon (core.builder.eq3_bound, normalized_measures).
+    `progress(scan, scans, islands)` is called after every scan when given.
     """
     cfg = config if config is not None else RealIslandConfig()
     rng = np.asarray(ranges_m, dtype=np.float64)
@@ -828,6 +830,8 @@ def build_islands_offline(
         return fix.pose
 
     for i in range(n):
+        if progress is not None and i > 0:
+            progress(i, n, len(islands))
         inc = relative_poses(raw[i - 1], raw[i])[0] if i > 0 else np.zeros(3)
         fixed: FloatArray | None = None
         if current >= 0:
