@@ -4,11 +4,14 @@
 island_builder_node and topo_graph_server_node (memory only) and a player node that publishes
 the recorded /clock, /odom, /ground_truth, /sonar/scan and /hall_follower/strategy messages in
 the order they were recorded (see `recorded_order`: the order the run's nodes received them,
-not log-time order). Delivery is made deterministic: every subscription
-callback of the two nodes is wrapped with a counter, and after publishing ONE message the
-executor is spun until each subscription on that topic has run its callback for it. So no
-message is dropped, none overtakes another, and the builder sees exactly the recorded sequence
-whatever the machine load (the run itself is paced by nothing but these callbacks).
+not log-time order). Delivery is made deterministic: every subscription callback of the two
+nodes is wrapped with a counter, and the executor is spun until each subscription has run its
+callback for every message published so far before anything else is published. Each scan goes
+alone; the messages between two scans (odometry, ground truth, strategy: the builder only
+accumulates them, each topic in its own order) go as one batch, of which only the newest /clock
+is published (the nodes' time sources keep only the newest clock anyway). So no message is
+dropped, none overtakes another where it matters, and the builder sees the recorded sequence
+whatever the machine load.
 
 The builder also drives (/cmd_vel) and calls /hall_follower/enable and /hall_follower/reset.
 Nobody answers in a replay: its calls are asynchronous (`call_async`), the futures simply stay
@@ -23,7 +26,9 @@ the damage is listed in `ReplayResult.warnings`.
 
 The builder's parameters are not in the recording: the replay uses the defaults (as
 `islands explore` does) unless `builder_params` overrides them; a run made with other builder
-parameters must be replayed with the same overrides.
+parameters must be replayed with the same overrides. Nor is the code: the replay runs the
+installed builder, so a recording made before the builder's logic changed replays into the
+new logic's graph (the comparison then shows where the two part).
 """
 
 from __future__ import annotations
@@ -69,6 +74,11 @@ REQUIRED_TOPICS = (ODOM_TOPIC, SCAN_TOPIC)
 """Without these the builder decides nothing; the others are optional (warned when missing)."""
 EVENTS_QOS = QoSProfile(depth=1000)
 """Deep enough to keep every builder event between two spins (a few per scan at most)."""
+MAX_BATCH = 50
+"""Most messages published before awaiting their delivery: well below the depth (100) of the
+builder's subscriptions and the player's publishers, so a batch is never cut short."""
+PROGRESS_EVERY = 500
+"""Report progress about this often [messages]."""
 SPIN_STEP_S = 0.01
 """Longest single executor wait while waiting for a delivery [s] (returns at once when ready)."""
 
@@ -115,6 +125,9 @@ class ReplayResult:
     """The recording's /island_builder/events, or None when it has none."""
     messages: dict[str, int]
     """Per replayed topic, how many messages were published."""
+    clocks_superseded: int
+    """Recorded /clock messages not published because a newer one followed before the next
+    scan (the nodes keep only the newest clock; the builder's decisions never read it)."""
     warnings: list[str]
     bag_path: Path
     wall_seconds: float
@@ -303,10 +316,21 @@ class _Replayer:
             qos = LATCHED if topic == STRATEGY_TOPIC else STREAM_QOS
             self.publishers[topic] = self.player.create_publisher(cls, topic, qos)
         self.counter = _DeliveryCounter([self.builder, self.server])
+        # Scans the builder core has processed (the node holds a scan back until odometry of
+        # its stamp or later has come): wrapped like the callbacks, the method is unchanged.
+        self.scans_processed = 0
+        core_on_scan = self.builder.builder.on_scan
+
+        def on_scan(*args: Any, **kwargs: Any) -> None:
+            self.scans_processed += 1
+            core_on_scan(*args, **kwargs)
+
+        self.builder.builder.on_scan = on_scan  # type: ignore[method-assign]
         self.executor = SingleThreadedExecutor(context=ctx)
         for n in (self.player, self.builder, self.server):
             self.executor.add_node(n)
         self.published: dict[str, int] = {t: 0 for t in self.topics}
+        self.clocks_superseded = 0
 
     def _on_event(self, msg: String) -> None:
         try:
@@ -353,22 +377,78 @@ class _Replayer:
                 "simulation would feed the replayed builder; set ROS_DOMAIN_ID to a free domain"
             )
 
-    def publish(self, m: BagMessage) -> None:
-        """Publish one recorded message and spin until every node subscribed to it took it."""
-        expected = self.counter.count.get(m.topic, 0) + self.counter.subscriptions.get(m.topic, 0)
-        self.publishers[m.topic].publish(m.data)
-        self.published[m.topic] += 1
-        if not self._spin_until(lambda: self.counter.count.get(m.topic, 0) >= expected,
-                                self.config.delivery_timeout_s):
+    def publish(self, batch: list[BagMessage]) -> None:
+        """Publish recorded messages and spin until every node subscribed took each of them.
+
+        A batch never holds a scan next to other topics (see `replay`), so the only order that
+        matters, each topic's own, is kept by the reliable in-order delivery of one topic.
+        """
+        expected = dict(self.counter.count)
+        for m in batch:
+            n_subs = self.counter.subscriptions.get(m.topic, 0)
+            expected[m.topic] = expected.get(m.topic, 0) + n_subs
+            self.publishers[m.topic].publish(m.data)
+            self.published[m.topic] += 1
+
+        def delivered() -> bool:
+            return all(self.counter.count.get(t, 0) >= n for t, n in expected.items())
+
+        if not self._spin_until(delivered, self.config.delivery_timeout_s):
+            late = sorted(t for t, n in expected.items() if self.counter.count.get(t, 0) < n)
+            m = batch[-1]
             raise ReplayError(
-                f"{self.reader.path}: message #{self.published[m.topic]} on {m.topic} "
-                f"(log time {m.log_time_ns} ns) was not delivered to the replay nodes within "
+                f"{self.reader.path}: recorded messages on {', '.join(late)} (up to log time "
+                f"{m.log_time_ns} ns) were not delivered to the replay nodes within "
                 f"{self.config.delivery_timeout_s:g} s"
             )
-        if self.counter.count.get(m.topic, 0) > expected:
+        extra = sorted(t for t, n in expected.items() if self.counter.count.get(t, 0) > n)
+        if extra:
             self.check_isolated()
-            raise ReplayError(f"the replay nodes received more {m.topic} messages than were "
-                              "replayed: another publisher is feeding them")
+            raise ReplayError(f"the replay nodes received more {', '.join(extra)} messages than "
+                              "were replayed: another publisher is feeding them")
+
+    def replay(self, messages: Iterable[BagMessage],
+               progress: Callable[[int], None] | None = None) -> None:
+        """Publish `messages` in their order, one scan at a time (see the module docstring).
+
+        Between two scans the builder only accumulates (odometry in order, the latest ground
+        truth and strategy), so the messages between two scans go out as one batch and are
+        awaited together; a scan goes alone. While the builder holds a scan back (its
+        odometry has not come yet, so the next odometry message will process it), every
+        message goes alone, as the order of that odometry and the other topics then matters.
+        """
+        batch: list[BagMessage] = []
+        done = 0
+        report_at = PROGRESS_EVERY
+        for m in messages:
+            alone = m.topic == SCAN_TOPIC or self.scans_held_back()
+            if batch and (alone or len(batch) >= MAX_BATCH):
+                self.publish(batch)
+                done += len(batch)
+                batch = []
+            if alone:
+                self.publish([m])
+                done += 1
+            elif m.topic == CLOCK_TOPIC and batch and any(b.topic == CLOCK_TOPIC for b in batch):
+                # The nodes' time sources keep only the newest clock (depth 1): a clock that a
+                # later one in the same batch supersedes is not published at all.
+                batch = [b for b in batch if b.topic != CLOCK_TOPIC] + [m]
+                self.clocks_superseded += 1
+                done += 1
+            else:
+                batch.append(m)
+            if progress is not None and done >= report_at:
+                report_at = done + PROGRESS_EVERY
+                progress(done)
+        if batch:
+            self.publish(batch)
+            done += len(batch)
+        if progress is not None:
+            progress(done)
+
+    def scans_held_back(self) -> bool:
+        """Has the builder taken a scan that it has not processed yet?"""
+        return self.scans_processed < self.counter.count.get(SCAN_TOPIC, 0)
 
     def finish(self) -> None:
         """Spin until the server holds what the builder accepted and every event arrived."""
@@ -508,18 +588,12 @@ def replay_run(
         rep = _Replayer(ctx, reader, cfg, builder_params)
         rep.wait_ready()
         total = sum(reader.topics[t].message_count for t in rep.topics)
-        done = 0
         try:
-            for m in recorded_order(reader, rep.topics):
-                rep.publish(m)
-                done += 1
-                if progress is not None and done % 500 == 0:
-                    progress(done, total)
+            rep.replay(recorded_order(reader, rep.topics),
+                       None if progress is None else (lambda done: progress(done, total)))
         except BagError as exc:
             raise ReplayError(f"cannot replay {reader.path}: {exc}") from None
         rep.finish()
-        if progress is not None:
-            progress(done, total)
         if rep.builder.bad_msg_count:
             warnings.append(f"the builder ignored {rep.builder.bad_msg_count} bad messages")
         if rep.bad_events:
@@ -533,6 +607,7 @@ def replay_run(
             events=list(rep.events),
             recorded_events=recorded_events,
             messages=dict(rep.published),
+            clocks_superseded=rep.clocks_superseded,
             warnings=warnings,
             bag_path=reader.path,
             wall_seconds=time.monotonic() - wall0,
