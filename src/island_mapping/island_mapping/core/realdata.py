@@ -670,7 +670,7 @@ class IslandRun:
 
     scan_island: (S,) id of the island a scan was localized in, -1 if none;
     scan_pose: (S, 3) the scan's pose in that island's frame (NaN when none);
-    epsilon_m: (S,) epsilon at each scan before any fix.
+    epsilon_m: (S,) epsilon at each scan, after its odometry increment and before a fix resets it.
     """
 
     islands: tuple[RealIsland, ...]
@@ -789,13 +789,14 @@ def build_islands_offline(
 
     ranges_m (S, B) [m], raw_poses (S, 3) raw odometry, times_s (S,) [s]. Per scan: if the robot
     is tracking an island, the previous island-frame pose plus the raw-odometry increment is the
-    guess for localizing the scan against that island's model; a fix that converges with a small
-    residual inside the coverage radius keeps it there (and resets epsilon). Otherwise islands
-    whose origin lies near by raw odometry are tried. A scan in no island adds its increment to
-    epsilon; when epsilon > E_min an island is attempted at that scan: the scans of a window
-    around it are accumulated in its frame (raw odometry, optionally refined by localizing each
-    against the growing model), lines are fitted and every model type is evaluated at the origin;
-    accepted when max_i R_i/T_i > E_min/epsilon (core.builder.eq3_bound, normalized_measures).
+    guess for localizing the scan against that island's model; a trusted fix (`_fix_ok`: converged,
+    small correction, enough inliers) inside the coverage radius keeps it there and resets
+    epsilon. Otherwise islands whose origin lies near by raw odometry are tried. Every increment
+    adds to epsilon; when a scan in no island finds epsilon > E_min an island is attempted there:
+    the scans of a window around it are accumulated in its frame (raw odometry, refined by
+    localizing each against the anchor scan's own line model), lines are fitted and every model
+    type is evaluated at the origin; accepted when max_i R_i/T_i > E_min/epsilon
+    (core.builder.eq3_bound, normalized_measures).
     `progress(scan, scans, islands)` is called after every scan when given.
     """
     cfg = config if config is not None else RealIslandConfig()
@@ -852,7 +853,7 @@ def build_islands_offline(
                 if fixed is not None:
                     current = k
                     break
-        eps_log[i] = eps.step(inc) if fixed is None else eps.epsilon_m
+        eps_log[i] = eps.step(inc)
         if fixed is not None:
             pose = fixed
             scan_island[i], scan_pose[i] = current, fixed
