@@ -210,3 +210,41 @@ def test_bad_input_gives_clear_errors(tmp_path: Path, capsys: pytest.CaptureFixt
     assert code == 2 and "expected NAME=VALUE" in err
     with pytest.raises(ReplayError, match="delivery_timeout_s"):
         ReplayConfig(delivery_timeout_s=0.0)
+
+
+def _tiny_bag(path: Path) -> Path:
+    """Two scans with their odometry: enough for a replay to start."""
+    from island_mapping.bag.writer import BagWriter
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import LaserScan
+
+    with BagWriter(path) as w:
+        for k in range(2):
+            odom = Odometry()
+            odom.header.stamp.nanosec = 100_000_000 * k
+            odom.pose.pose.orientation.w = 1.0
+            w.write("/odom", odom)
+            scan = LaserScan()
+            scan.header.stamp.nanosec = 100_000_000 * k
+            scan.angle_increment = 0.5
+            scan.range_max = 5.0
+            scan.ranges = [1.0, 2.0, 3.0]
+            w.write("/sonar/scan", scan)
+    return path
+
+
+def test_refuses_to_replay_next_to_another_publisher(ros_context: Any, tmp_path: Path) -> None:
+    """A simulation publishing /odom in the same domain would feed the replayed builder."""
+    from island_mapping.replay import ReplayError, replay_run
+    from nav_msgs.msg import Odometry
+    from rclpy.node import Node
+
+    bag = _tiny_bag(tmp_path / "tiny")
+    replay_run(bag)  # alone in the domain: fine
+    foreign = Node("foreign_simulator", context=ros_context)
+    try:
+        foreign.create_publisher(Odometry, "/odom", 10)
+        with pytest.raises(ReplayError, match=r"other publishers .*/odom: 1.*ROS_DOMAIN_ID"):
+            replay_run(bag)
+    finally:
+        foreign.destroy_node()

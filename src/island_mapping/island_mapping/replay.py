@@ -105,8 +105,17 @@ class ReplayConfig:
         metadata={"help": "wall time to wait for topic matching and the /topo_graph/add "
                           "service before replaying, and for the last graph updates after [s]"},
     )
+    discovery_settle_s: float = field(
+        default=0.5,
+        metadata={"help": "wall time given to discovering other processes in the ROS domain "
+                          "before checking that none publishes a replayed topic (also checked "
+                          "at the end) [s]"},
+    )
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.discovery_settle_s) and self.discovery_settle_s >= 0):
+            raise ReplayError("ReplayConfig.discovery_settle_s must be a number of seconds "
+                              f">= 0, got {self.discovery_settle_s!r}")
         for name in ("delivery_timeout_s", "setup_timeout_s"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -363,6 +372,8 @@ class _Replayer:
                 f"/topo_graph/add ready={self.builder.add_cli.service_is_ready()}, "
                 f"subscriptions matched per topic {matched}"
             )
+        settle = time.monotonic() + self.config.discovery_settle_s
+        self._spin_until(lambda: time.monotonic() >= settle, self.config.discovery_settle_s + 1)
         self.check_isolated()
 
     def check_isolated(self) -> None:
@@ -468,6 +479,7 @@ class _Replayer:
                 f"{len(core.islands)} and {len(core.edges)} (not settled within "
                 f"{self.config.setup_timeout_s:g} s)"
             )
+        self.check_isolated()
 
     def close(self) -> None:
         self.executor.shutdown()
