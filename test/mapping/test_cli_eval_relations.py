@@ -18,7 +18,7 @@ def test_eval_relations_writes_metrics_and_islands_figure(shared_data: Path, tmp
     rc = main([
         "eval-relations", "--log", str(shared_data / "intel" / "intel.gfs.log"),
         "--relations", str(shared_data / "intel" / "intel.relations"), "--out", str(out),
-        "--max-scans", "40", "--seed", "3",
+        "--max-scans", "30", "--seed", "3",
     ])
     assert rc == 0
     m = json.loads((out / "metrics.json").read_text())
@@ -26,7 +26,7 @@ def test_eval_relations_writes_metrics_and_islands_figure(shared_data: Path, tmp
                 "median_rot_err_deg", "island_count", "gmapping_same_relations",
                 "gmapping_all_relations", "bridged"):
         assert key in m, key
-    assert m["scans"] == 40 and m["seed"] == 3 and m["beams"] == 180
+    assert m["scans"] == 30 and m["seed"] == 3 and m["beams"] == 180
     assert m["island_count"] >= 1
     assert round(m["gmapping_all_relations"]["mean_trans_err_m"], 3) == 0.065
     b = m["bridged"]

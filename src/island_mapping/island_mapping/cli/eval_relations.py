@@ -154,6 +154,8 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
     mode = "laser" if args.beams == 180 else f"sonar-like, {args.beams} beams"
+    if args.localize_beams and args.localize_beams != args.beams:
+        mode += f"; scans localized from {args.localize_beams} beams"
     plot_islands(island_run.islands, out / "islands.png",
                  f"{len(island_run.islands)} islands on the Intel log ({mode})")
     print(json.dumps({k: metrics[k] for k in (
