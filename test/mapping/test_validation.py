@@ -136,3 +136,17 @@ def test_spearman_ceiling_of_a_two_valued_confidence() -> None:
     assert spearman_ceiling(conf) == pytest.approx(math.sqrt(3 * p * (1 - p)), abs=0.01)
     assert spearman_ceiling(np.linspace(0, 1, 50)) == pytest.approx(1.0)
     assert math.isnan(spearman_ceiling(np.ones(5)))
+
+
+def test_split_half_reliability_is_high_for_a_repeatable_confidence() -> None:
+    from island_mapping.core.validation import split_half_reliability
+
+    cfg = ValidationConfig(trials=4)
+    good = np.repeat(np.linspace(0.0, 0.15, 30)[:, None], 4, axis=1)  # same error every trial
+    rel = split_half_reliability(ConfidenceMap(np.zeros((30, 2)), good, np.ones((30, 4), bool),
+                                               np.zeros(30), np.zeros(30, bool)), cfg)
+    assert rel["split_half_spearman"] == pytest.approx(1.0)
+    noise = np.random.default_rng(0).uniform(0.0, 0.15, (30, 4))  # nothing repeatable
+    rel = split_half_reliability(ConfidenceMap(np.zeros((30, 2)), noise, np.ones((30, 4), bool),
+                                               np.zeros(30), np.zeros(30, bool)), cfg)
+    assert rel["spearman_ceiling_est"] < 0.6

@@ -17,8 +17,10 @@ Confidence map (as the paper, with several trials per point):
 
 Comparison of a measure M (R of the line model, or the Fisher score) with the confidence:
 - M is normalized to [0, 1] by its maximum over the evaluated points (M / max M; M >= 0);
-- `spearman_ceiling`: the largest Spearman ANY measure could reach against this confidence (its
-  ties cap it; a two-valued confidence with success fraction p caps it at sqrt(3 p (1 - p)));
+- how far the confidence itself can be predicted: `spearman_ceiling_ties` (exact ties cap any
+  measure's Spearman; a two-valued confidence with success fraction p at sqrt(3 p (1 - p))) and
+  `split_half_spearman` / `spearman_ceiling_est` (even vs odd trials, Spearman-Brown: the
+  trial-to-trial noise of the mm-level errors of successful trials caps it too);
 - residual = M_norm - conf; `frac_residual_gt_0_4` = fraction of points with |residual| > 0.4
   (paper Fig. 2: about 25 %); Spearman rank correlation of M and conf; ROC AUC of M for
   "success" (Mann-Whitney, ties count 1/2).
@@ -305,6 +307,29 @@ def spearman_ceiling(confidence: npt.ArrayLike) -> float:
     return float(spearmanr(rankdata(c, method="ordinal"), c).statistic)
 
 
+def split_half_reliability(conf: ConfidenceMap, cfg: ValidationConfig) -> dict[str, float | None]:
+    """How reproducible the confidence map itself is: the Spearman correlation between the
+    confidence from the even and from the odd trials ("split_half_spearman"), its Spearman-Brown
+    correction to all trials, and sqrt of that ("spearman_ceiling_est"), roughly the best
+    Spearman any measure can reach against a confidence this noisy. None with one trial."""
+    if conf.errors.shape[1] < 2:
+        return {"split_half_spearman": None, "spearman_ceiling_est": None}
+    c = cfg.confidence_c_m
+
+    def conf_of(err: FloatArray) -> FloatArray:
+        return np.asarray(((c - np.minimum(err, c)) / c).mean(axis=1))
+
+    a, b = conf_of(conf.errors[:, 0::2]), conf_of(conf.errors[:, 1::2])
+    if np.ptp(a) == 0 or np.ptp(b) == 0:
+        return {"split_half_spearman": None, "spearman_ceiling_est": None}
+    rho = float(spearmanr(a, b).statistic)
+    full = 2.0 * rho / (1.0 + rho) if rho > -1.0 else -1.0
+    return {
+        "split_half_spearman": _clean4(rho),
+        "spearman_ceiling_est": _clean4(math.sqrt(full)) if full > 0 else 0.0,
+    }
+
+
 def _clean4(v: float) -> float | None:
     return round(v, 4) if math.isfinite(v) else None
 
@@ -463,7 +488,8 @@ def run_validation(
             "success_rate": round(float(conf.success.mean()), 4),
             "converged_rate": round(float(conf.converged.mean()), 4),
             "median_error_m": round(float(np.median(conf.errors)), 4),
-            "spearman_ceiling": _clean4(spearman_ceiling(conf.confidence)),
+            "spearman_ceiling_ties": _clean4(spearman_ceiling(conf.confidence)),
+            **split_half_reliability(conf, vcfg),
         },
         "line": {**line_cmp.as_dict(thr), "params": _params(lcfg, ("k", "c", "m"))},
         "fisher": {**fisher_cmp.as_dict(thr), "params": _params(fcfg, ("std_ref_m", "m"))},
