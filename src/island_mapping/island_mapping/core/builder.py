@@ -145,7 +145,7 @@ class BuilderConfig:
         metadata={"help": "T_line: acceptance threshold of the line-model measure R [-]"},
     )
     threshold_fisher: float = field(
-        default=0.4, metadata={"help": "T_fisher: acceptance threshold of the Fisher score [-]"}
+        default=0.8, metadata={"help": "T_fisher: acceptance threshold of the Fisher score [-]"}
     )
     bound_floor: float = field(
         default=0.6,
