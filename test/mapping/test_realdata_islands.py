@@ -189,3 +189,30 @@ def test_sonar_like_scans_localize_in_laser_built_islands(
     assert sum(1 for k in fix_sizes if k <= 16) >= localized
     with pytest.raises(rd.RealDataError, match="localize_beams"):
         rd.RealIslandConfig(localize_beams=7)
+
+
+def _points_seen_from(segments: np.ndarray, pose: np.ndarray, step_m: float = 0.1) -> np.ndarray:
+    """Points along the segments, in the robot frame of `pose` (no occlusion: enough here)."""
+    pts = []
+    for x1, y1, x2, y2 in segments:
+        k = max(2, int(math.hypot(x2 - x1, y2 - y1) / step_m))
+        pts.append(np.stack([np.linspace(x1, x2, k), np.linspace(y1, y2, k)], axis=1))
+    world = np.concatenate(pts)
+    inv = rd.relative_poses(pose, np.zeros(3))[0]  # pose^-1
+    local = rd.transform_points(inv, world)
+    return local[np.hypot(local[:, 0], local[:, 1]) <= 6.0]  # the sensor's range
+
+
+def test_place_search_finds_a_pose_in_an_asymmetric_room_and_flags_a_corridor() -> None:
+    room = np.array([[-3, -2, 4, -2], [4, -2, 4, 3], [4, 3, 0, 3], [0, 3, 0, 1], [0, 1, -3, 1],
+                     [-3, 1, -3, -2], [1.5, 0.0, 2.5, 0.0]], dtype=float)  # L-shape + a box edge
+    search = rd.PlaceSearch(LineModel(room), half_extent_m=8.0, coverage_m=3.0)
+    true_pose = np.array([1.0, -0.6, math.radians(70.0)])
+    pose, score, second = search.search(_points_seen_from(room, true_pose))
+    assert math.hypot(pose[0] - true_pose[0], pose[1] - true_pose[1]) <= 0.15
+    assert abs(math.degrees(rd.wrap_angles(pose[2] - true_pose[2]))) <= 5.0
+    assert score > 0.9 and score - second > 0.2
+    corridor = np.array([[-20, -1, 20, -1], [-20, 1, 20, 1]], dtype=float)
+    search_c = rd.PlaceSearch(LineModel(corridor), half_extent_m=8.0, coverage_m=3.0)
+    _, score_c, second_c = search_c.search(_points_seen_from(corridor, np.array([0.5, 0, 0])))
+    assert score_c > 0.9 and score_c - second_c < 0.05  # every position along it fits

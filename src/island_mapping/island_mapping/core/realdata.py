@@ -582,6 +582,21 @@ class RealIslandConfig:
     max_correction_deg: float = field(
         default=15.0, metadata={"help": "a fix may turn the odometry guess at most this much [deg]"}
     )
+    place_recognition: bool = field(
+        default=False,
+        metadata={"help": "when lost, search every island's model for the scan (a correlative "
+                  "search around the island origin) before attempting a new island [bool]"},
+    )
+    recognition_min_inliers: float = field(
+        default=0.8,
+        metadata={"help": "a recognized place needs at least this fraction of scan points "
+                  "within inlier_dist_m of the island's model after the fix [-]"},
+    )
+    recognition_margin: float = field(
+        default=0.1,
+        metadata={"help": "the best search score must beat the best pose at least 1 m or 30 deg "
+                  "away by this much (else the place is ambiguous, e.g. a corridor) [-]"},
+    )
     odometry: OdometryErrorModel = field(
         default_factory=OdometryErrorModel, metadata={"help": "raw-odometry error model (epsilon)"}
     )
@@ -770,6 +785,78 @@ def _fix_ok(
     return bool(np.mean(dist <= cfg.inlier_dist_m) >= cfg.min_inlier_fraction)
 
 
+# Correlative place search: distance-field resolution [m], search grid over the coverage
+# square [m] and headings [deg], points used (every k-th), and the score's distance scale [m].
+_FIELD_RES_M = 0.1
+_SEARCH_STEP_M = 0.2
+_SEARCH_STEP_DEG = 10.0
+_SEARCH_POINT_STRIDE = 4
+_SEARCH_SIGMA_M = 0.1
+# Two search optima closer than this are the same place hypothesis [m, deg].
+_DISTINCT_M = 1.0
+_DISTINCT_DEG = 30.0
+
+
+class PlaceSearch:
+    """Where could a scan be in an island? A brute-force correlative search of the island's
+    line model (as a distance field) over positions within the coverage radius and all
+    headings; the score of a pose is the mean of exp(-d^2 / 2 sigma^2) over the scan's points,
+    d the distance to the model."""
+
+    def __init__(self, model: LineModel, half_extent_m: float, coverage_m: float) -> None:
+        from scipy.ndimage import distance_transform_edt
+
+        self.res = _FIELD_RES_M
+        self.half = half_extent_m
+        n = math.ceil(2 * half_extent_m / self.res) + 1
+        occ = np.ones((n, n), dtype=bool)
+        for x1, y1, x2, y2 in model.segments:
+            k = max(2, int(math.hypot(x2 - x1, y2 - y1) / (self.res / 2)) + 1)
+            xs = np.linspace(x1, x2, k)
+            ys = np.linspace(y1, y2, k)
+            ix = np.round((xs + half_extent_m) / self.res).astype(np.int64)
+            iy = np.round((ys + half_extent_m) / self.res).astype(np.int64)
+            ok = (ix >= 0) & (ix < n) & (iy >= 0) & (iy < n)
+            occ[iy[ok], ix[ok]] = False
+        self.field = (distance_transform_edt(occ) * self.res).astype(np.float64)
+        self.n = n
+        ticks = np.arange(-coverage_m, coverage_m + 1e-9, _SEARCH_STEP_M)
+        gx, gy = np.meshgrid(ticks, ticks)
+        inside = np.hypot(gx, gy) <= coverage_m
+        self.offsets = np.stack([gx[inside], gy[inside]], axis=1)
+        self.headings = np.radians(np.arange(0.0, 360.0, _SEARCH_STEP_DEG))
+
+    def search(self, points: FloatArray) -> tuple[FloatArray, float, float]:
+        """(best pose (3,), its score, best score of a distinct hypothesis) for robot-frame
+        points; scores are in [0, 1]."""
+        pts = points[::_SEARCH_POINT_STRIDE]
+        best = (np.zeros(3), -1.0)
+        cands: list[tuple[float, float, float, float]] = []
+        for th in self.headings:
+            c, s_ = math.cos(th), math.sin(th)
+            rot = np.stack([c * pts[:, 0] - s_ * pts[:, 1], s_ * pts[:, 0] + c * pts[:, 1]], 1)
+            world = rot[None, :, :] + self.offsets[:, None, :]
+            ij = np.round((world + self.half) / self.res).astype(np.int64)
+            ok = (ij >= 0).all(axis=2) & (ij < self.n).all(axis=2)
+            d = np.full(ok.shape, 10.0 * _SEARCH_SIGMA_M)
+            d[ok] = self.field[ij[..., 1][ok], ij[..., 0][ok]]
+            score = np.mean(np.exp(-0.5 * (d / _SEARCH_SIGMA_M) ** 2), axis=1)
+            k = int(np.argmax(score))
+            cands.append((float(score[k]), float(self.offsets[k, 0]), float(self.offsets[k, 1]),
+                          float(th)))
+            if score[k] > best[1]:
+                best = (np.array([self.offsets[k, 0], self.offsets[k, 1], th]), float(score[k]))
+        bp = best[0]
+        second = 0.0
+        for sc, x, y, th in cands:
+            far = math.hypot(x - bp[0], y - bp[1]) > _DISTINCT_M
+            turned = abs(math.degrees(wrap_angles(th - bp[2]))) > _DISTINCT_DEG
+            if far or turned:
+                second = max(second, sc)
+        bp[2] = float(wrap_angles(bp[2]))
+        return bp, best[1], second
+
+
 # A fix from fewer scan points is not trusted (3 points barely constrain x, y and theta).
 MIN_FIX_POINTS = 5
 
@@ -820,6 +907,7 @@ def build_islands_offline(
     eps = EpsilonTracker(cfg.odometry)
     current, pose = -1, np.zeros(3)
     next_attempt = 0
+    searches: list[PlaceSearch] = []
 
     def try_fix(k: int, i: int, guess: FloatArray) -> FloatArray | None:
         pts = scans.fix_points[i]
@@ -861,6 +949,13 @@ def build_islands_offline(
             continue
         if eps.epsilon_m <= cfg.builder.e_min_m or i < next_attempt:
             continue
+        if cfg.place_recognition and islands:
+            found = _recognize(i, islands, searches, scans, cfg, loc)
+            if found is not None:
+                current, pose = found
+                scan_island[i], scan_pose[i] = current, pose
+                eps.reset()
+                continue
         model, window = _window_model(i, raw, scans, cfg, fit, loc)
         measures = evaluate(model.segments) if len(model) else {}
         best_type, best = normalized_measures(cfg.builder, measures)
@@ -878,6 +973,9 @@ def build_islands_offline(
             built_at_s=float(t[i]),
         )
         islands.append(RealIsland(new, i, raw[i].copy()))
+        if cfg.place_recognition:
+            searches.append(PlaceSearch(model, cfg.coverage_radius_m + cfg.max_range_m,
+                                        cfg.coverage_radius_m))
         current = new.id
         eps.reset()
         # The anchor and the buffered window scans are localized in the new island.
@@ -891,6 +989,41 @@ def build_islands_offline(
         if scan_island[i] != current:
             scan_island[i], scan_pose[i] = current, np.zeros(3)
     return IslandRun(tuple(islands), tuple(attempts), scan_island, scan_pose, eps_log, cfg)
+
+
+def _recognize(
+    i: int,
+    islands: list[RealIsland],
+    searches: list[PlaceSearch],
+    scans: _Scans,
+    cfg: RealIslandConfig,
+    loc: Localizer,
+) -> tuple[int, FloatArray] | None:
+    """Place recognition for a lost robot: the island and island-frame pose of scan i, or None
+    when no island explains the scan unambiguously (see RealIslandConfig.place_recognition)."""
+    pts = scans.fix_points[i]
+    if pts.shape[0] < MIN_FIX_POINTS:
+        return None
+    best: tuple[float, int, FloatArray] | None = None
+    for k, search in enumerate(searches):
+        guess, score, second = search.search(pts)
+        if score - second < cfg.recognition_margin:
+            continue
+        if best is None or score > best[0]:
+            best = (score, k, guess)
+    if best is None:
+        return None
+    _, k, guess = best
+    model = islands[k].island.model
+    fix = loc(model, pts, guess)
+    if not _fix_ok(fix, guess, cfg, pts, model):
+        return None
+    if math.hypot(fix.pose[0], fix.pose[1]) > cfg.coverage_radius_m:
+        return None
+    d = point_segment_distance(transform_points(fix.pose, pts), model.segments).min(axis=1)
+    if np.mean(d <= cfg.inlier_dist_m) < cfg.recognition_min_inliers:
+        return None
+    return k, fix.pose
 
 
 def _window_model(
