@@ -3,7 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
-from island_mapping.core.placement import PlaceKind, classify_place, placement_counts
+from island_mapping.core.placement import (
+    PlaceKind,
+    classify_place,
+    feature_distance_m,
+    placement_counts,
+)
 from island_msgs_py.types import Pose2D
 from island_sim.core.world import load_world
 
@@ -35,3 +40,10 @@ def test_paper_fig4_junction_and_hallway() -> None:
     assert classify_place(world.segments, 9.0, 9.0) is PlaceKind.FEATURE
     counts = placement_counts(world.segments, [Pose2D(21.0, 9.0, 0.0), Pose2D(9.0, 9.0, 0.0)])
     assert counts == {"plain_hallway": 1, "feature": 1, "open_space": 0}
+
+
+def test_feature_distance_is_how_far_the_nearest_cross_wall_is() -> None:
+    closed = np.vstack([CORRIDOR, [[20.0, 0.0, 20.0, 2.0]]])
+    d = feature_distance_m(closed, 16.0, 1.0)
+    assert 4.0 <= d <= 4.25  # the end wall is 4 m ahead (first visible just beyond 4 m)
+    assert feature_distance_m(CORRIDOR, 10.0, 1.0, max_m=5.0) == float("inf")

@@ -30,7 +30,12 @@ from island_mapping.cli import CliError
 from island_mapping.cli.fig3 import ProgressBar
 from island_mapping.core.graph import TopoGraph
 from island_mapping.core.navigate import NavigateError, SimSetup, evaluate_routes
-from island_mapping.core.placement import PlaceKind, classify_place, placement_counts
+from island_mapping.core.placement import (
+    PlaceKind,
+    classify_place,
+    feature_distance_m,
+    placement_counts,
+)
 
 PROGRESS_STEPS = 1000
 """Resolution of the progress bar (per mille of the simulated duration)."""
@@ -146,6 +151,9 @@ def run(args: argparse.Namespace) -> int:
         "island_origins_truth": {str(k): pose_to_dict(v) for k, v in origins.items()},
         "island_places": {
             str(k): classify_place(world.segments, v.x, v.y).value for k, v in origins.items()
+        },
+        "island_feature_distance_m": {
+            str(k): feature_distance_m(world.segments, v.x, v.y) for k, v in origins.items()
         },
         "placement_counts": placement_counts(world.segments, origins.values()),
         "plain_hallway_islands": sum(

@@ -61,6 +61,19 @@ def classify_place(
     return PlaceKind.FEATURE
 
 
+def feature_distance_m(
+    segments: FloatArray, x_m: float, y_m: float, max_m: float = 6.5, step_m: float = 0.25
+) -> float:
+    """Smallest visibility radius [m] (in steps of `step_m`) at which the place at (x, y) is a
+    FEATURE (walls in two directions visible); `inf` if none is up to `max_m`."""
+    n = round(max_m / step_m)
+    for k in range(1, n + 1):
+        r = k * step_m
+        if classify_place(segments, x_m, y_m, PlacementConfig(radius_m=r)) is PlaceKind.FEATURE:
+            return r
+    return float("inf")
+
+
 def placement_counts(
     segments: FloatArray, places: Iterable[Pose2D], cfg: PlacementConfig | None = None
 ) -> dict[str, int]:
