@@ -1,9 +1,9 @@
 """Replaying a recorded run into a fresh builder and graph server reproduces the run's map.
 
-One short `islands explore` (module fixture) records run_bag/ and graph.json; `islands replay`
-rebuilds the graph from the bag alone and must give the same islands (ids, model types,
-segments to 1e-9 m, r) and edges (source, target, strategy text, weights), and the same builder
-events. A truncated copy of the bag is refused with an error naming the file, or with
+One short run of every node (module fixture: runner.run, what `islands explore` does) records
+run_bag/ and graph.json; `islands replay` rebuilds the graph from the bag alone and must give
+the same islands (ids, model types, segments to 1e-9 m, r) and edges (source, target, strategy
+text, weights), and the same builder events. A truncated copy of the bag is refused with an error naming the file, or with
 --allow-damaged replays its intact part (a prefix of the run: the same first islands).
 """
 
@@ -18,19 +18,21 @@ from typing import Any
 import numpy as np
 import pytest
 
-SIM_SECONDS = 150.0
-"""Long enough for island 0, one more island and the edge between them (paper_fig4, seed 1)."""
+SIM_SECONDS = 120.0
+"""Long enough for island 0, one more island and the edge between them (paper_fig4, seed 1:
+accepted at about 25 s and 70 s of sim time), short enough to keep this file near a minute."""
 
 
 @pytest.fixture(scope="module")
 def recorded_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from island_mapping.cli import main
+    """`islands explore`'s layout: run_bag/ and graph.json side by side (no figures)."""
+    from island_mapping.runner import RunConfig, run
 
     out = tmp_path_factory.mktemp("recorded_run")
-    code = main(["explore", "--world", "paper_fig4", "--out", str(out), "--seed", "1",
-                 "--sim-seconds", str(SIM_SECONDS), "--routes", "0", "--quiet"])
-    assert code == 0
-    assert (out / "run_bag" / "metadata.yaml").is_file() and (out / "graph.json").is_file()
+    rec = run(RunConfig(world="paper_fig4", seed=1, sim_seconds=SIM_SECONDS,
+                        record_dir=str(out / "run_bag"), wall_timeout_s=600.0))
+    assert rec.bag_dir == out / "run_bag" and (out / "run_bag" / "metadata.yaml").is_file()
+    rec.graph.save_json(out / "graph.json")
     return out
 
 
@@ -64,10 +66,11 @@ def test_replay_reproduces_the_recorded_graph(
     assert report["events"]["recorded"] >= 3  # at least attempt, acceptance, hand-back
     assert report["warnings"] == []
     topics = open_bag(recorded_run / "run_bag").topics
-    for topic in ("/odom", "/ground_truth", "/sonar/scan", "/hall_follower/strategy"):
+    for topic in ("/odom", "/ground_truth", "/sonar/scan"):
         assert report["messages"][topic] == topics[topic].message_count > 0  # none dropped
-    assert (report["messages"]["/clock"] + report["clocks_superseded"]
-            == topics["/clock"].message_count)
+    for topic in ("/clock", "/hall_follower/strategy"):  # only the newest before each scan
+        assert (report["messages"][topic] + report["superseded"][topic]
+                == topics[topic].message_count)
     assert json.loads((out / "replay.json").read_text()) == report
 
     # Independently of compare_graphs: island by island, edge by edge.
@@ -217,6 +220,15 @@ def test_bad_input_gives_clear_errors(tmp_path: Path, capsys: pytest.CaptureFixt
     assert code == 2 and "expected NAME=VALUE" in err
     with pytest.raises(ReplayError, match="delivery_timeout_s"):
         ReplayConfig(delivery_timeout_s=0.0)
+
+    tiny = _tiny_bag(tmp_path / "tiny")
+    with pytest.raises(ReplayError, match=r"has no parameter builder\.no_such_thing"):
+        replay_run(tiny, builder_params={"builder.no_such_thing": 1.0})
+    with pytest.raises(ReplayError, match=r"rejected the builder parameters.*e_min_m"):
+        replay_run(tiny, builder_params={"builder.e_min_m": -1.0})
+    code, _, err = _run_cli(["replay", str(tiny), "--out", str(tmp_path / "o"),
+                             "--builder-param", "builder.e_min_m=-1"], capsys)
+    assert code == 2 and "e_min_m" in err and "Traceback" not in err
 
 
 def _tiny_bag(path: Path) -> Path:

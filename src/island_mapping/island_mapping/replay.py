@@ -9,9 +9,9 @@ nodes is wrapped with a counter, and the executor is spun until each subscriptio
 callback for every message published so far before anything else is published. Each scan goes
 alone; the messages between two scans (odometry, ground truth, strategy: the builder only
 accumulates them, each topic in its own order) go as one batch, of which only the newest /clock
-is published (the nodes' time sources keep only the newest clock anyway). So no message is
-dropped, none overtakes another where it matters, and the builder sees the recorded sequence
-whatever the machine load.
+and the newest strategy are published (their subscribers keep only the newest anyway: depth
+1). So no message is lost, none overtakes another where it matters, and the builder sees the
+recorded sequence whatever the machine load.
 
 The builder also drives (/cmd_vel) and calls /hall_follower/enable and /hall_follower/reset.
 Nobody answers in a replay: its calls are asynchronous (`call_async`), the futures simply stay
@@ -70,6 +70,9 @@ STRATEGY_TOPIC = "/hall_follower/strategy"
 EVENTS_TOPIC = "/island_builder/events"
 REPLAYED_TOPICS = (CLOCK_TOPIC, ODOM_TOPIC, TRUTH_TOPIC, SCAN_TOPIC, STRATEGY_TOPIC)
 """What the builder (and the graph server's clock) consume in a run."""
+LATEST_ONLY_TOPICS = (CLOCK_TOPIC, STRATEGY_TOPIC)
+"""Topics whose subscribers keep only the newest message (depth 1: the time sources' /clock,
+the builder's latched strategy, which `set_strategy` overwrites)."""
 REQUIRED_TOPICS = (ODOM_TOPIC, SCAN_TOPIC)
 """Without these the builder decides nothing; the others are optional (warned when missing)."""
 EVENTS_QOS = QoSProfile(depth=1000)
@@ -134,9 +137,9 @@ class ReplayResult:
     """The recording's /island_builder/events, or None when it has none."""
     messages: dict[str, int]
     """Per replayed topic, how many messages were published."""
-    clocks_superseded: int
-    """Recorded /clock messages not published because a newer one followed before the next
-    scan (the nodes keep only the newest clock; the builder's decisions never read it)."""
+    superseded: dict[str, int]
+    """Per LATEST_ONLY_TOPICS topic, recorded messages not published because a newer one on
+    the same topic followed before the next scan (the nodes keep only the newest)."""
     warnings: list[str]
     bag_path: Path
     wall_seconds: float
@@ -307,8 +310,17 @@ class _Replayer:
         overrides = [sim_time] + [Parameter(k, value=v) for k, v in (builder_params or {}).items()]
         # No parameter services: nobody can reach them in a replay, and fewer entities make
         # every executor wait cheaper (one per replayed message).
-        self.builder = IslandBuilderNode(context=ctx, parameter_overrides=overrides,
-                                         start_parameter_services=False)
+        try:
+            self.builder = IslandBuilderNode(context=ctx, parameter_overrides=overrides,
+                                             start_parameter_services=False)
+        except Exception as exc:  # a bad value: rclpy and the config raise various types
+            raise ReplayError(f"island_builder_node rejected the builder parameters "
+                              f"{dict(builder_params or {})}: {exc}") from None
+        unknown = sorted(k for k in (builder_params or {}) if not self.builder.has_parameter(k))
+        if unknown:
+            self.builder.destroy_node()
+            raise ReplayError(f"island_builder_node has no parameter {', '.join(unknown)} "
+                              "(e.g. builder.e_min_m, builder.star.leg_length_m)")
         self.server = TopoGraphServerNode(
             context=ctx, parameter_overrides=[sim_time, Parameter("storage_path", value="")]
         )
@@ -339,7 +351,7 @@ class _Replayer:
         for n in (self.player, self.builder, self.server):
             self.executor.add_node(n)
         self.published: dict[str, int] = {t: 0 for t in self.topics}
-        self.clocks_superseded = 0
+        self.superseded: dict[str, int] = {t: 0 for t in LATEST_ONLY_TOPICS}
 
     def _on_event(self, msg: String) -> None:
         try:
@@ -440,11 +452,11 @@ class _Replayer:
             if alone:
                 self.publish([m])
                 done += 1
-            elif m.topic == CLOCK_TOPIC and batch and any(b.topic == CLOCK_TOPIC for b in batch):
-                # The nodes' time sources keep only the newest clock (depth 1): a clock that a
-                # later one in the same batch supersedes is not published at all.
-                batch = [b for b in batch if b.topic != CLOCK_TOPIC] + [m]
-                self.clocks_superseded += 1
+            elif m.topic in LATEST_ONLY_TOPICS and any(b.topic == m.topic for b in batch):
+                # Its subscriptions keep only the newest message (depth 1) and nothing reads it
+                # before the next scan: the older one in the batch is not published at all.
+                batch = [b for b in batch if b.topic != m.topic] + [m]
+                self.superseded[m.topic] += 1
                 done += 1
             else:
                 batch.append(m)
@@ -619,7 +631,7 @@ def replay_run(
             events=list(rep.events),
             recorded_events=recorded_events,
             messages=dict(rep.published),
-            clocks_superseded=rep.clocks_superseded,
+            superseded=dict(rep.superseded),
             warnings=warnings,
             bag_path=reader.path,
             wall_seconds=time.monotonic() - wall0,

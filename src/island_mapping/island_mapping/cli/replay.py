@@ -120,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
         "bag": str(res.bag_path),
         "out": {k: str(v) for k, v in paths.items()},
         "messages": res.messages,
-        "clocks_superseded": res.clocks_superseded,
+        "superseded": res.superseded,
         "islands": len(res.graph),
         "edges": res.graph.num_edges,
         "wall_seconds": round(res.wall_seconds, 2),
