@@ -3,8 +3,9 @@
 One short run of every node (module fixture: runner.run, what `islands explore` does) records
 run_bag/ and graph.json; `islands replay` rebuilds the graph from the bag alone and must give
 the same islands (ids, model types, segments to 1e-9 m, r) and edges (source, target, strategy
-text, weights), and the same builder events. A truncated copy of the bag is refused with an error naming the file, or with
---allow-damaged replays its intact part (a prefix of the run: the same first islands).
+text, weights), and the same builder events. A truncated copy of the bag is refused with an
+error naming the file, or with --allow-damaged replays its intact part (a prefix of the run:
+the same first islands).
 """
 
 from __future__ import annotations
@@ -267,3 +268,41 @@ def test_refuses_to_replay_next_to_another_publisher(ros_context: Any, tmp_path:
             replay_run(bag)
     finally:
         foreign.destroy_node()
+
+
+def test_scan_before_its_odometry_is_processed_when_the_odometry_comes(tmp_path: Path) -> None:
+    """The builder holds a scan back until odometry of its stamp arrives: the replay must not
+    stall on it (its delivery is counted when the scan is taken, its processing later), and the
+    scan is processed with the odometry of its own stamp, at its own time."""
+    from island_mapping.bag.writer import BagWriter
+    from island_mapping.replay import replay_run
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import LaserScan
+
+    def odom(t_ns: int, x: float) -> Odometry:
+        msg = Odometry()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t_ns, 1_000_000_000)
+        msg.pose.pose.position.x = x
+        msg.pose.pose.orientation.w = 1.0
+        return msg
+
+    def scan(t_ns: int) -> LaserScan:
+        msg = LaserScan()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t_ns, 1_000_000_000)
+        msg.angle_min, msg.angle_increment, msg.range_max = -1.0, 0.5, 5.0
+        msg.ranges = [1.0, 1.5, 2.0, 2.5, 3.0]
+        return msg
+
+    bag = tmp_path / "scan_first"
+    with BagWriter(bag) as w:
+        w.write("/sonar/scan", scan(1_000_000_000))  # before any odometry of its stamp
+        w.write("/odom", odom(1_000_000_000, 2.0))  # releases it: the pose it must use
+        for k in range(1, 8):  # later odometry (one batch, had the scan not been held)
+            w.write("/odom", odom(1_000_000_000 + 20_000_000 * k, 2.0 + 0.01 * k))
+    res = replay_run(bag)
+    assert res.messages == {"/odom": 8, "/sonar/scan": 1}
+    assert res.warnings[0].endswith("has no /clock; replaying without it")
+    (started,) = res.events
+    assert started["kind"] == "attempt_started"
+    assert started["t_s"] == pytest.approx(1.0)
+    assert started["anchor_odom"]["x"] == 2.0

@@ -109,7 +109,7 @@ class ReplayConfig:
                           "service before replaying, and for the last graph updates after [s]"},
     )
     discovery_settle_s: float = field(
-        default=0.5,
+        default=1.0,
         metadata={"help": "wall time given to discovering other processes in the ROS domain "
                           "before checking that none publishes a replayed topic (also checked "
                           "at the end) [s]"},
