@@ -4,7 +4,8 @@
 
 Replays the recorded /clock, /odom, /ground_truth, /sonar/scan and /hall_follower/strategy of
 BAG (a rosbag2 directory such as `islands explore`'s run_bag/, or its .mcap file) into a fresh
-island builder and graph server, one message at a time (see island_mapping.replay), and writes
+island builder and graph server in the recorded order, awaiting each message's delivery before
+the next scan goes out (see island_mapping.replay and docs/replay.md), and writes
 
   DIR/graph.json, DIR/graph.geojson, DIR/graph.graphml   the rebuilt map
   DIR/replay.json                                          the comparison printed on stdout
