@@ -13,6 +13,8 @@ with `ros2 run`; this module only creates them with parameter overrides and spin
 from __future__ import annotations
 
 import json
+import os
+import random
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -45,6 +47,8 @@ OBSERVER_QOS = QoSProfile(depth=1000)
 """Deep enough that a burst of ground truth between two spins is never dropped."""
 RECORDER_MATCH_WAIT_S = 5.0
 """Wall time to wait for the recorder to match the run's publishers before the clock starts."""
+PRIVATE_DOMAIN_MIN, PRIVATE_DOMAIN_MAX = 102, 232
+"""Domains picked for unattended runs: valid for Fast DDS on Linux, above those tests use."""
 RECORDED_TOPICS_REQUIRED = ("/odom", "/ground_truth", "/sonar/scan", "/cmd_vel", "/clock")
 
 
@@ -62,6 +66,11 @@ class RunConfig:
     record_dir: str = field(default="", metadata={"help": "MCAP output directory; empty = none"})
     wall_timeout_s: float = field(
         default=3600.0, metadata={"help": "give up after this much wall time [s]"}
+    )
+    domain_id: int = field(
+        default=-1,
+        metadata={"help": "ROS domain of the run; -1 = ROS_DOMAIN_ID if set, else a random free "
+                          "one so that concurrent runs never hear each other [-]"},
     )
     params: dict[str, dict[str, Any]] = field(
         default_factory=dict,
@@ -122,6 +131,19 @@ class _Observer(Node):
         self.events.append(event)
 
 
+def resolve_domain_id(requested: int) -> int:
+    """The domain a run uses: `requested` if >= 0, else ROS_DOMAIN_ID, else a random one.
+
+    A run publishes /odom, /cmd_vel, ... like any robot; two runs (or a run and a test) in one
+    domain would drive each other's nodes, so an unset domain means a private one."""
+    if requested >= 0:
+        return requested
+    env = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    if env:
+        return int(env)
+    return random.SystemRandom().randint(PRIVATE_DOMAIN_MIN, PRIVATE_DOMAIN_MAX)
+
+
 def _overrides(base: dict[str, Any], extra: dict[str, Any] | None) -> list[Parameter]:
     merged = {**base, **(extra or {})}
     return [Parameter(k, value=v) for k, v in merged.items()]
@@ -131,7 +153,7 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
     """Run every node in one process until `cfg.sim_seconds` of simulated time have passed."""
     ensure_ros_env()
     ctx = Context()
-    rclpy.init(context=ctx)
+    rclpy.init(context=ctx, domain_id=resolve_domain_id(cfg.domain_id))
     nodes: list[Node] = []
     recorder: RunRecorder | None = None
     executor = SingleThreadedExecutor(context=ctx)

@@ -54,6 +54,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-record", action="store_true", help="do not write run_bag/")
     parser.add_argument("--wall-timeout", type=float, default=3600.0,
                         help="give up after this much wall time [s]")
+    parser.add_argument("--domain-id", type=int, default=-1,
+                        help="ROS domain of the run (default: ROS_DOMAIN_ID if set, else a random "
+                             "private one, printed, so concurrent runs stay apart)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -99,7 +102,7 @@ def _route_summary(graph: TopoGraph, world: Any, events: list[dict[str, Any]], n
 
 
 def run(args: argparse.Namespace) -> int:
-    from island_mapping.runner import RunConfig, RunError
+    from island_mapping.runner import RunConfig, RunError, resolve_domain_id
     from island_mapping.runner import run as run_nodes
     from island_mapping.viz.explore import exploration_figure, strategies_table, topology_figure
 
@@ -117,9 +120,12 @@ def run(args: argparse.Namespace) -> int:
     bar = None if args.quiet else ProgressBar(f"explore {world.name}")
     progress = None if bar is None else (
         lambda frac: bar(round(frac * PROGRESS_STEPS), PROGRESS_STEPS))
+    domain = resolve_domain_id(args.domain_id)
+    print(f"islands explore: ROS_DOMAIN_ID={domain} (watch with "
+          f"`ROS_DOMAIN_ID={domain} islands topic echo /hall_follower/strategy`)", file=sys.stderr)
     cfg = RunConfig(world=args.world, seed=args.seed, sim_seconds=args.sim_seconds,
                     record_dir="" if args.no_record else str(bag_dir),
-                    wall_timeout_s=args.wall_timeout)
+                    wall_timeout_s=args.wall_timeout, domain_id=domain)
     try:
         rec = run_nodes(cfg, progress)
     except RunError as exc:
