@@ -177,3 +177,13 @@ def test_island_cores_do_not_import_rclpy() -> None:
         "assert not bad, bad\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=60)
+
+
+def test_map_with_eps_on_its_own_grid_equals_pointwise_averages() -> None:
+    cfg = MeasureConfig(eps_m=0.5, eps_step_m=0.25)
+    xs, ys, grid = measure_map(SQUARE, (-2.0, -2.0, 2.0, 2.0), 0.25, cfg)
+    assert grid.shape == (16, 16)
+    pts = np.array([[xs[i], ys[j]] for j, i in [(0, 0), (3, 7), (8, 8), (15, 2)]])
+    direct = line_measure(SQUARE, pts, cfg).r_eps
+    got = np.array([grid[j, i] for j, i in [(0, 0), (3, 7), (8, 8), (15, 2)]])
+    assert np.allclose(got, direct, atol=1e-12)
