@@ -3,6 +3,7 @@ retry, eq. 3, epsilon; no ROS."""
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
@@ -22,12 +23,23 @@ from island_mapping.core.builder import (
     RelativeCovariance,
     StarConfig,
     eq3_bound,
+    event_to_dict,
     normalized_measures,
 )
-from island_msgs_py.types import ControlStrategy, FloatArray, LineModel, ModelType, Pose2D
+from island_msgs_py.types import (
+    ControlStrategy,
+    Edge,
+    FloatArray,
+    Island,
+    LineModel,
+    ModelType,
+    Pose2D,
+)
 from island_sim.core.robot import OdometryConfig, SimRobot
 from island_sim.core.sonar import SonarConfig, SonarModel
 from island_sim.core.world import World
+
+from island_msgs_py import json_io
 
 HALF_WIDTH_M = 1.25  # corridors 2.5 m wide
 DT_S = 0.02  # physics step [s]
@@ -382,3 +394,21 @@ def test_builder_core_does_not_import_rclpy() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_event_json_round_trips_the_island_and_edge() -> None:
+    island = Island(3, LineModel(np.array([[0.0, -1.0, 2.0, -1.0]])), ModelType.FISHER, 1.4, 12.5)
+    edge = Edge(2, 3, ControlStrategy.parse("Go 125, Rot 270, Go 652"), 8.3, 8.0, 0.3)
+    ev = BuilderEvent(EventKind.ISLAND_ACCEPTED, 12.5, Pose2D(1.0, 2.0, 0.5), 0.45,
+                      anchor_odom=Pose2D(1.0, 2.0, 0.5), measure=1.4, bound=0.67,
+                      legs_m=((0.0, 1.2), (math.pi / 2, 0.4)), island=island, edge=edge)
+    d = json.loads(json.dumps(event_to_dict(ev)))
+    assert d["kind"] == "island_accepted" and d["bound"] == pytest.approx(0.67)
+    assert json_io.island_from_dict(d["island"]) == island
+    assert json_io.edge_from_dict(d["edge"]) == edge
+    assert json_io.pose_from_dict(d["anchor_odom"]) == Pose2D(1.0, 2.0, 0.5)
+    assert d["legs_m"] == [[0.0, 1.2], [math.pi / 2, 0.4]]
+    dismissed = BuilderEvent(EventKind.ATTEMPT_DISMISSED, 1.0, Pose2D(0.0, 0.0, 0.0), 0.4,
+                             partial=True, reason=DismissReason.MEASURE)
+    d2 = event_to_dict(dismissed)
+    assert d2["partial"] is True and d2["reason"] == "measure" and "island" not in d2
