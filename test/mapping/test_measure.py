@@ -187,3 +187,23 @@ def test_map_with_eps_on_its_own_grid_equals_pointwise_averages() -> None:
     direct = line_measure(SQUARE, pts, cfg).r_eps
     got = np.array([grid[j, i] for j, i in [(0, 0), (3, 7), (8, 8), (15, 2)]])
     assert np.allclose(got, direct, atol=1e-12)
+
+
+def test_tiled_casting_gives_exactly_the_untiled_result(monkeypatch) -> None:
+    import island_mapping.core.measure as measure_mod
+    from island_mapping.core.fisher import fisher_measure
+
+    rng = np.random.default_rng(8)
+    a = rng.uniform(0.0, 25.0, (60, 2))
+    ang = rng.uniform(0.0, math.pi, 60)
+    length = rng.uniform(0.5, 4.0, 60)
+    walls = np.c_[a, a + length[:, None] * np.c_[np.cos(ang), np.sin(ang)]]
+    pts = rng.uniform(0.0, 25.0, (400, 2))
+    tiled = line_measure(walls, pts)
+    tiled_f = fisher_measure(walls, pts)
+    monkeypatch.setattr(measure_mod, "_TILE_MIN_SEGMENTS", 10**9)
+    whole = line_measure(walls, pts)
+    whole_f = fisher_measure(walls, pts)
+    assert np.array_equal(tiled.c_par, whole.c_par) and np.array_equal(tiled.r, whole.r)
+    assert np.array_equal(tiled_f.info, whole_f.info)
+    assert np.count_nonzero(whole.c_par) > 300  # the world is not trivially empty

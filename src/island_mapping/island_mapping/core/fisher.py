@@ -30,9 +30,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 from island_msgs_py.types import FloatArray
-from island_sim.core.world import World
+from island_sim.core.world import World, raycast
 
-from island_mapping.core.measure import as_points, as_world, ray_angles
+from island_mapping.core.measure import as_points, as_world, ray_angles, tiled_chunks
 
 # Rays per ray-cast call (bounds the temporaries of the brute-force caster).
 _RAYS_PER_CHUNK = 1 << 13
@@ -114,11 +114,14 @@ def information_matrices(
         return info
     cos_min = math.cos(math.radians(config.reflect_deg)) - 1e-12
     per_chunk = max(1, _RAYS_PER_CHUNK // n_rays)
-    for s in range(0, pts.shape[0], per_chunk):
-        chunk = pts[s : s + per_chunk]
-        nc = chunk.shape[0]
+    for members, sub in tiled_chunks(pts, seg, config.max_range_m, per_chunk):
+        nc = members.shape[0]
         ang = np.tile(angles, nc)
-        hits = world.raycast(np.repeat(chunk, n_rays, axis=0), ang, config.max_range_m)
+        origins = np.repeat(pts[members], n_rays, axis=0)
+        if sub is None:
+            hits = world.raycast(origins, ang, config.max_range_m)
+        else:
+            hits = raycast(seg[sub], origins, ang, config.max_range_m)
         ok = (hits.segment >= 0) & (hits.cos_incidence >= cos_min)
         rho = np.where(ok, hits.distance_m, 0.0)
         u = np.stack([np.cos(ang), np.sin(ang)], axis=1)
@@ -133,7 +136,7 @@ def information_matrices(
         sigma = config.sigma_m + config.sigma_per_m * rho
         w = np.where(ok, 1.0 / sigma**2, 0.0)
         outer = jac[:, :, None] * jac[:, None, :] * w[:, None, None]
-        info[s : s + nc] = outer.reshape(nc, n_rays, 3, 3).sum(axis=1)
+        info[members] = outer.reshape(nc, n_rays, 3, 3).sum(axis=1)
     return info
 
 
