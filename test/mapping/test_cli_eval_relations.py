@@ -27,6 +27,7 @@ def test_eval_relations_writes_metrics_and_islands_figure(shared_data: Path, tmp
                 "gmapping_all_relations", "bridged"):
         assert key in m, key
     assert m["scans"] == 30 and m["seed"] == 3 and m["beams"] == 180
+    assert m["place_recognition"] is False and m["revisit_relations_covered"] == 0
     assert m["island_count"] >= 1
     assert round(m["gmapping_all_relations"]["mean_trans_err_m"], 3) == 0.065
     b = m["bridged"]

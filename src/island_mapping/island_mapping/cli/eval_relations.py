@@ -1,8 +1,8 @@
 """`islands eval-relations`: islands built offline on a CARMEN log, scored on Kuemmerle relations.
 
   islands eval-relations --log intel.gfs.log --relations intel.relations --out DIR
-                         [--beams 180|24|16] [--localize-beams 24|16] [--seed N]
-                         [--bridge-s S] [--max-scans N]
+                         [--beams 180|24|16] [--localize-beams 24|16] [--place-recognition]
+                         [--seed N] [--bridge-s S] [--max-scans N]
 
 Writes DIR/metrics.json (covered_relations, mean/median translation error [m], mean/median
 rotation error [deg] inside islands, the GMapping trajectory on the same relations and on all of
@@ -41,6 +41,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="beams used to localize scans in the islands (0 = --beams): "
                              "--beams 180 --localize-beams 24 localizes sonar-like scans in "
                              "laser-built islands")
+    parser.add_argument("--place-recognition", action="store_true",
+                        help="a lost robot first searches every island's model for its scan "
+                             "(re-enters islands on revisits; slower)")
     parser.add_argument("--seed", type=int, default=0,
                         help="recorded only: the pipeline has no random step")
     parser.add_argument("--bridge-s", type=float, default=DEFAULT_BRIDGE_S,
@@ -61,6 +64,8 @@ def _stats(score: rd.RelationScore) -> dict[str, Any]:
     }
 
 
+# A relation joining poses farther apart in time than this is a revisit (after a loop) [s].
+REVISIT_S = 100.0
 # Progress goes to stderr every this many scans (a full Intel run takes a few minutes).
 PROGRESS_EVERY_SCANS = 100
 
@@ -91,7 +96,8 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
     if len(relations) == 0:
         raise CliError(f"{args.relations}: no relations")
     n = log.n_scans if args.max_scans is None else min(args.max_scans, log.n_scans)
-    cfg = dataclasses.replace(rd.sonar_like_config(args.beams), localize_beams=args.localize_beams)
+    cfg = dataclasses.replace(rd.sonar_like_config(args.beams), localize_beams=args.localize_beams,
+                              place_recognition=args.place_recognition)
     run = rd.build_islands_offline(log.ranges_m[:n], log.raw_odometry[:n], log.times_s[:n], cfg,
                                    progress=_progress)
     scan_t = log.times_s[:n]
@@ -110,6 +116,9 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
                         for t in ("line", "fisher")},
         "beams": args.beams,
         "localize_beams": args.localize_beams or args.beams,
+        "place_recognition": args.place_recognition,
+        "revisit_relations_covered": int(np.sum(
+            bridged.covered & (np.abs(relations.t2_s - relations.t1_s) > REVISIT_S))),
         "seed": args.seed,
         "scan_match_tolerance_s": rd.SCAN_MATCH_TOLERANCE_S,
         "config": _config_summary(cfg),
