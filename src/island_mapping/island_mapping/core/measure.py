@@ -26,11 +26,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 from island_msgs_py.types import FloatArray, ModelType, as_segments
 from island_sim.core.world import World, raycast
+
+if TYPE_CHECKING:  # fisher imports this module at run time
+    from island_mapping.core.fisher import FisherConfig
 
 # Rays per ray-cast call: small enough to stay in cache (measured 2x faster than 1 << 17).
 _RAYS_PER_CHUNK = 1 << 13
@@ -497,19 +501,20 @@ def evaluate_models(
     segments: npt.ArrayLike,
     point: npt.ArrayLike,
     line_cfg: MeasureConfig | None = None,
-    fisher_cfg: object | None = None,
+    fisher_cfg: FisherConfig | None = None,
 ) -> dict[ModelType, float]:
     """{LINE: R(p, eps), FISHER: Fisher score} at one point (2,) [m] of a model (K, 4) [m].
 
     The island builder divides each by its acceptance threshold T_i (eq. 3).
     """
-    from island_mapping.core.fisher import FisherConfig, fisher_measure
+    from island_mapping.core.fisher import FisherConfig as _FisherConfig
+    from island_mapping.core.fisher import fisher_measure
 
     pt = as_points(point, "point")
     if pt.shape[0] != 1:
         raise MeasureError(f"point: expected one (2,) point, got {pt.shape[0]}")
-    fcfg = fisher_cfg if isinstance(fisher_cfg, FisherConfig) else FisherConfig()
-    if fisher_cfg is not None and not isinstance(fisher_cfg, FisherConfig):
+    fcfg = fisher_cfg if isinstance(fisher_cfg, _FisherConfig) else _FisherConfig()
+    if fisher_cfg is not None and not isinstance(fisher_cfg, _FisherConfig):
         raise MeasureError(f"fisher_cfg: expected a FisherConfig, got {type(fisher_cfg).__name__}")
     line = line_measure(segments, pt, line_cfg)
     fish = fisher_measure(segments, pt, fcfg)
