@@ -21,7 +21,10 @@ def _core_modules() -> list[str]:
     for pkg in ("island_sim", "island_mapping"):
         core = ROOT / "src" / pkg / pkg / "core"
         mods += [f"{pkg}.core.{p.stem}" for p in sorted(core.glob("*.py")) if p.stem != "__init__"]
-    return [m for m in mods if (ROOT / "src" / m.split(".")[0] / (m.replace(".", "/") + ".py")).exists()]
+    return [
+        m for m in mods
+        if (ROOT / "src" / m.split(".")[0] / (m.replace(".", "/") + ".py")).exists()
+    ]
 
 
 def test_core_modules_do_not_load_rclpy() -> None:

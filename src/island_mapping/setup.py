@@ -18,7 +18,10 @@ setup(
     zip_safe=True,
     maintainer='Islands of Reliability maintainers',
     maintainer_email='islands@example.org',
-    description='Islands of reliability (Simhon and Dudek): line models, localization, the distinctiveness measure, island building and the topological graph server.',
+    description=(
+        'Islands of reliability (Simhon and Dudek): line models, localization, the '
+        'distinctiveness measure, island building and the topological graph server.'
+    ),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

@@ -18,12 +18,13 @@ setup(
     zip_safe=True,
     maintainer='Islands of Reliability maintainers',
     maintainer_email='islands@example.org',
-    description='Shared data types of the islands-of-reliability map (islands, edges, control strategies) with their JSON and ROS message forms.',
+    description=(
+        'Shared data types of the islands-of-reliability map (islands, edges, control '
+        'strategies) with their JSON and ROS message forms.'
+    ),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={
-        'console_scripts': [
-            
-        ],
+        'console_scripts': [],
     },
 )

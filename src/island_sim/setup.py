@@ -18,7 +18,10 @@ setup(
     zip_safe=True,
     maintainer='Islands of Reliability maintainers',
     maintainer_email='islands@example.org',
-    description='Simulated Nomad-200-like robot: line-segment worlds, sonar ring, drifting odometry and hall following.',
+    description=(
+        'Simulated Nomad-200-like robot: line-segment worlds, sonar ring, drifting '
+        'odometry and hall following.'
+    ),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

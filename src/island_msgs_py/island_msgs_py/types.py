@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-from enum import Enum
+from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
@@ -81,7 +81,7 @@ class Pose2D:
         return base.inverse().compose(self)
 
 
-class PrimitiveKind(str, Enum):
+class PrimitiveKind(StrEnum):
     """A control-strategy step: drive straight (Go, cm) or rotate in place (Rot, deg CCW)."""
 
     GO = "Go"
@@ -120,7 +120,7 @@ _PRIMITIVE_RE = re.compile(r"^\s*(Go|Rot)\s+(-?\d+)\s*$", re.IGNORECASE)
 
 @dataclass(frozen=True)
 class ControlStrategy:
-    """An ordered list of primitives, printed like the paper's Table 1: `Go 125, Rot 270, Go 652`."""
+    """Ordered primitives, printed like the paper's Table 1: `Go 125, Rot 270, Go 652`."""
 
     steps: tuple[StrategyPrimitive, ...] = ()
 
@@ -147,7 +147,7 @@ class ControlStrategy:
         return sum(s.metres for s in self.steps)
 
 
-class ModelType(str, Enum):
+class ModelType(StrEnum):
     """The model types T_i that can accept an island (eq. 3)."""
 
     LINE = "line"  # the paper's sonar line-model measure R (eqs. 4-12)
