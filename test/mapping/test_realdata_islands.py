@@ -3,6 +3,7 @@ Intel Research Lab log end to end (laser and sonar-like mode)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -216,3 +217,60 @@ def test_place_search_finds_a_pose_in_an_asymmetric_room_and_flags_a_corridor() 
     search_c = rd.PlaceSearch(LineModel(corridor), half_extent_m=8.0, coverage_m=3.0)
     _, score_c, second_c = search_c.search(_points_seen_from(corridor, np.array([0.5, 0, 0])))
     assert score_c > 0.9 and score_c - second_c < 0.05  # every position along it fits
+
+
+def _synthetic_revisit_log() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A laser robot in room A, down a corridor to room B and back to room A; its raw odometry
+    gains a 60 deg heading error in room B (so odometry cannot lead it back into A's island).
+    Returns (ranges (S, 180), raw poses (S, 3), true poses (S, 3), times (S,))."""
+    from island_sim.core.world import World
+
+    walls = np.array([
+        [0, 0, 6, 0], [6, 0, 6, 2], [6, 3, 6, 5], [6, 5, 0, 5], [0, 5, 0, 0],  # room A
+        [1, 1, 2, 1], [2, 1, 2, 1.6],  # a box edge in A
+        [6, 2, 14, 2], [6, 3, 14, 3],  # corridor
+        [14, 2, 14, -2], [14, -2, 19, -2], [19, -2, 19, 6], [19, 6, 14, 6], [14, 6, 14, 3],  # B
+        [16, 0, 17, 1],  # a diagonal wall in B
+    ], dtype=float)
+    world = World(walls)
+    out = [(2.0 + 0.4 * k, 2.5, 0.0) for k in range(4)]
+    out += [(4.0 + 1.0 * k, 2.5, 0.0) for k in range(1, 13)]  # through the corridor into B
+    back = [(16.0, 2.5, math.pi)] + [(16.0 - 1.0 * k, 2.5, math.pi) for k in range(1, 13)]
+    back += [(3.6 - 0.4 * k, 2.5, math.pi) for k in range(4)]
+    back += [(2.4, 2.5, 0.0), (2.8, 2.5, 0.0)]  # turn round: face the part seen on the way out
+    true = np.array(out + back)
+    angles = rd.beam_angles(180)
+    ranges = []
+    for x, y, th in true:
+        hits = world.raycast(np.tile([x, y], (180, 1)), th + angles, 20.0)
+        ranges.append(np.where(np.isfinite(hits.distance_m), hits.distance_m, 81.83))
+    inc = rd.relative_poses(true[:-1], true[1:])
+    inc[len(out) - 1, 2] += math.radians(60.0)  # the odometry's heading error in room B
+    raw = [np.zeros(3)]
+    for d in inc:
+        raw.append(rd.compose_poses(raw[-1], d)[0])
+    return np.array(ranges), np.array(raw), true, np.arange(true.shape[0], dtype=float) * 3.0
+
+
+def test_place_recognition_re_enters_the_first_island_after_odometry_fails() -> None:
+    ranges, raw, true, times = _synthetic_revisit_log()
+    base = rd.RealIslandConfig(builder=rd.BuilderConfig(e_min_m=0.05))
+    plain = rd.build_islands_offline(ranges, raw, times, base)
+    found = rd.build_islands_offline(
+        ranges, raw, times, dataclasses.replace(base, place_recognition=True))
+    for run in (plain, found):
+        assert run.islands and run.islands[0].anchor_scan < 4  # island 0 is in room A
+
+    def room_a_ids(run: rd.IslandRun) -> set[int]:
+        return {i.island.id for i in run.islands if i.anchor_scan < 4}
+
+    tail = slice(true.shape[0] - 2, true.shape[0])  # the last scans, back in room A
+    assert not set(plain.scan_island[tail].tolist()) & room_a_ids(plain)
+    back_in_a = [j for j in range(true.shape[0])[tail] if found.scan_island[j] in room_a_ids(found)]
+    assert back_in_a
+    for j in back_in_a:  # the island-frame pose agrees with the truth
+        isl = found.islands[int(found.scan_island[j])]
+        truth = rd.relative_poses(true[isl.anchor_scan], true[j])[0]
+        got = found.scan_pose[j]
+        assert math.hypot(*(got[:2] - truth[:2])) < 0.1
+        assert abs(math.degrees(rd.wrap_angles(got[2] - truth[2]))) < 3.0
