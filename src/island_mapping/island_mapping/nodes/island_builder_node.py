@@ -1,6 +1,7 @@
 """island_builder_node: builds islands of reliability while the hall follower explores (eq. 3).
 
-Subscribes  /odom                    nav_msgs/Odometry (pose + covariance: epsilon)
+Subscribes  /odom                    nav_msgs/Odometry (pose + covariance: epsilon); each scan
+                                     is decided with the odometry of its own stamp
             /sonar/scan              sensor_msgs/LaserScan
             /hall_follower/strategy  std_msgs/String (latched), the executed strategy
             /ground_truth            nav_msgs/Odometry, only to stamp islands' origin_truth
@@ -16,14 +17,13 @@ from __future__ import annotations
 
 import json
 import sys
-from collections import OrderedDict, deque
 from collections.abc import Sequence
 from typing import Any
 
 import rclpy
 from geometry_msgs.msg import Twist
 from island_msgs_py.ros_params import declare_config, ensure_ros_env
-from island_msgs_py.types import ControlStrategy, IslandTypeError, Pose2D
+from island_msgs_py.types import ControlStrategy, IslandTypeError
 from island_sim.conversions import (
     NS_PER_S,
     ConversionError,
@@ -51,7 +51,7 @@ STREAM_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
 LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                      reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-ODOM_BUFFER = 200  # odometry stamps kept for pairing scans (4 s at 50 Hz)
+ODOM_BUFFER = 200  # stamps kept for pairing scans with odometry (4 s at 50 Hz)
 
 
 class IslandBuilderNode(Node):
@@ -62,8 +62,7 @@ class IslandBuilderNode(Node):
         self.bad_msg_count = 0
         self.follower_enabled = True  # confirmed state of the hall follower
         self._enable_pending: bool | None = None
-        self._odom: OrderedDict[int, Pose2D] = OrderedDict()
-        self._pending: deque[tuple[int, Any, Any]] = deque()
+        self.sync = core.StampSync(self.builder, ODOM_BUFFER)
         self.cmd_pub = self.create_publisher(Twist, "/cmd_vel", STREAM_QOS)
         self.event_pub = self.create_publisher(String, "/island_builder/events", STREAM_QOS)
         self.create_subscription(Odometry, "/odom", self._on_odom, STREAM_QOS)
@@ -79,23 +78,18 @@ class IslandBuilderNode(Node):
         self.get_logger().warn(f"ignored bad {what} ({self.bad_msg_count} so far): {exc}",
                                throttle_duration_sec=WARN_THROTTLE_S)
 
-    # --- inputs: scans are processed with the odometry of the same stamp ----------------------
+    # --- inputs: each scan meets the odometry and ground truth of its stamp (core.StampSync) --
     def _on_odom(self, msg: Odometry) -> None:
         try:
             pose, cov, t_ns = odometry_to_pose(msg)
-            self.builder.on_odometry(t_ns * 1e-9, pose, cov)
+            self._act(self.sync.odometry(t_ns, pose, cov))
         except (ConversionError, ValueError) as exc:
             self._warn("/odom", exc)
-            return
-        self._odom[t_ns] = pose
-        while len(self._odom) > ODOM_BUFFER:
-            self._odom.popitem(last=False)
-        while self._pending and self._pending[0][0] <= t_ns:
-            self._process(*self._pending.popleft())
 
     def _on_truth(self, msg: Odometry) -> None:
         try:
-            self.builder.on_ground_truth(odometry_to_pose(msg)[0])
+            pose, _, t_ns = odometry_to_pose(msg)
+            self.sync.ground_truth(t_ns, pose)
         except ConversionError as exc:
             self._warn("/ground_truth", exc)
 
@@ -108,34 +102,24 @@ class IslandBuilderNode(Node):
     def _on_scan(self, msg: LaserScan) -> None:
         try:
             ranges, angles = scan_to_arrays(msg)
-        except ConversionError as exc:
+            t_ns = int(msg.header.stamp.sec) * NS_PER_S + int(msg.header.stamp.nanosec)
+            self._act(self.sync.scan(t_ns, ranges, angles))
+        except (ConversionError, ValueError) as exc:
             self._warn("/sonar/scan", exc)
-            return
-        t_ns = int(msg.header.stamp.sec) * NS_PER_S + int(msg.header.stamp.nanosec)
-        self._pending.append((t_ns, ranges, angles))
-        if self._odom and next(reversed(self._odom)) >= t_ns:
-            while self._pending and self._pending[0][0] <= t_ns:
-                self._process(*self._pending.popleft())
 
     # --- one decision per scan ----------------------------------------------------------------
-    def _process(self, t_ns: int, ranges: Any, angles: Any) -> None:
-        t = t_ns * 1e-9
-        try:
-            self.builder.on_scan(t, ranges, angles)
-            cmd = self.builder.command(t)
-        except ValueError as exc:
-            self._warn("scan for the builder", exc)
-            return
-        for e in cmd.events:
-            self._handle_event(e)
-        if cmd.mode is CommandMode.DRIVE:
-            self._set_follower(False)
-            self.cmd_pub.publish(command_to_twist(cmd.v_mps, cmd.w_radps))
-        else:
-            if not self.follower_enabled:  # until it confirms, keep the lockstep fed
-                self.cmd_pub.publish(command_to_twist(0.0, 0.0))
-            if self._enable_pending is None and not self.follower_enabled:
-                self._set_follower(True)
+    def _act(self, commands: list[tuple[int, core.BuilderCommand]]) -> None:
+        for _, cmd in commands:
+            for e in cmd.events:
+                self._handle_event(e)
+            if cmd.mode is CommandMode.DRIVE:
+                self._set_follower(False)
+                self.cmd_pub.publish(command_to_twist(cmd.v_mps, cmd.w_radps))
+            else:
+                if not self.follower_enabled:  # until it confirms, keep the lockstep fed
+                    self.cmd_pub.publish(command_to_twist(0.0, 0.0))
+                if self._enable_pending is None and not self.follower_enabled:
+                    self._set_follower(True)
 
     def _handle_event(self, e: BuilderEvent) -> None:
         self.event_pub.publish(String(data=json.dumps(core.event_to_dict(e))))
