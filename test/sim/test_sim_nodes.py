@@ -297,6 +297,9 @@ def test_reset_and_pause_services(ros_context: Any) -> None:
             lambda: bool(strategies) and ControlStrategy.parse(strategies[-1]).length_m < 0.3, 5.0)
         resp = _call(sim, enable, SetBool.Request(data=False))
         assert resp.success and "paused" in resp.message
+        # A command published just before the pause may still be in flight: let it land first.
+        before = sim.follower.scans_processed
+        assert sim.spin_until(lambda: sim.follower.scans_processed > before + 2, 20.0)
         processed, cmds = sim.follower.scans_processed, sim.odo.cmd_count
         assert sim.spin_until(lambda: sim.follower.scans_processed > processed + 20, 20.0)
         assert sim.odo.cmd_count == cmds  # paused: nothing on /cmd_vel

@@ -10,9 +10,11 @@ from __future__ import annotations
 import dataclasses
 import os
 import sys
+from collections.abc import Callable, Sequence
 from enum import Enum
 from typing import Any, TypeVar
 
+import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
@@ -58,3 +60,41 @@ def declare_config(node: Node, prefix: str, default: T) -> T:
             got = float(got)
         values[f.name] = got
     return dataclasses.replace(default, **values)  # type: ignore[type-var]
+
+
+EXIT_BAD_CONFIG = 2
+"""Exit code of a node whose parameters or stored state are unusable (like the CLI's bad input)."""
+
+
+def run_node(
+    factory: Callable[[], Node],
+    name: str,
+    args: Sequence[str] | None = None,
+    config_errors: tuple[type[BaseException], ...] = (ValueError,),
+) -> int:
+    """The whole `main()` of a node: init, build it, spin until Ctrl-C or shutdown, clean up.
+
+    An exception of `config_errors` while building the node (a bad parameter, an unreadable world
+    or graph store) is printed as `<name>: error: ...` and gives exit code 2.
+    """
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    ensure_ros_env()
+    rclpy.init(args=list(args) if args is not None else None)
+    try:
+        node = factory()
+    except config_errors as exc:
+        print(f"{name}: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return EXIT_BAD_CONFIG
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

@@ -22,16 +22,14 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import rclpy
 from island_msgs_py.json_io import GraphFormatError
-from island_msgs_py.ros_params import declare_config, ensure_ros_env
+from island_msgs_py.ros_params import declare_config, run_node
 from island_msgs_py.types import Island, IslandTypeError
 from nav_msgs.msg import Path as PathMsg
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
 from rcl_interfaces.srv import SetParameters
 from rclpy.context import Context
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter as RclpyParameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -194,25 +192,8 @@ class TopoGraphServerNode(Node):
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    ensure_ros_env()
-    rclpy.init(args=list(args) if args is not None else None)
-    try:
-        node = TopoGraphServerNode()
-    except (GraphFormatError, GraphError, OSError) as exc:
-        print(f"topo_graph_server_node: cannot open the stored graph: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(TopoGraphServerNode, "topo_graph_server_node", args,
+                    config_errors=(GraphFormatError, GraphError, OSError, ValueError))
 
 
 if __name__ == "__main__":

@@ -17,10 +17,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import rclpy
-from island_msgs_py.ros_params import declare_config, ensure_ros_env
+from island_msgs_py.ros_params import declare_config, run_node
 from nav_msgs.msg import Odometry
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import LaserScan, Range
@@ -107,25 +105,7 @@ class SonarNode(Node):
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    ensure_ros_env()
-    rclpy.init(args=list(args) if args is not None else None)
-    try:
-        node = SonarNode()
-    except ValueError as exc:  # bad parameters: WorldError, SonarError, ...
-        print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(SonarNode, NODE_NAME, args)
 
 
 if __name__ == "__main__":
