@@ -8,11 +8,26 @@ from pathlib import Path
 from typing import Any
 
 
+def pyplot() -> Any:
+    """matplotlib.pyplot on the non-interactive Agg backend (figures are files here)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def draw_walls(ax: Any, segments: Any, color: str = "black", linewidth: float = 1.2) -> None:
+    """Wall segments (N, 4) [m] as lines on `ax`."""
+    for x1, y1, x2, y2 in segments:
+        ax.plot([x1, x2], [y1, y2], color=color, linewidth=linewidth, solid_capstyle="butt")
+
+
 def save_figure(fig: Any, path: str | os.PathLike[str], dpi: int = 120) -> Path:
     """Save a matplotlib figure to `path` atomically (temp file in the same dir + os.replace)
     and close it."""
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=target.suffix, dir=target.parent)

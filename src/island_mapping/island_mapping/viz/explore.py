@@ -8,17 +8,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import networkx as nx
 import numpy as np
 from island_msgs_py.types import FloatArray
-from matplotlib.figure import Figure
 
 from island_mapping.core.graph import TopoGraph
-from island_mapping.viz import save_figure
+from island_mapping.viz import draw_walls, pyplot, save_figure
 
 WALL_COLOUR = "0.55"
 ACCEPTED_COLOUR = "tab:green"
@@ -27,13 +22,8 @@ FAILED_COLOUR = "tab:red"
 DPI = 130
 
 
-def _save(fig: Figure, path: Path) -> Path:
+def _save(fig: Any, path: Path) -> Path:
     return save_figure(fig, path, dpi=DPI)
-
-
-def _draw_walls(ax: Any, segments: FloatArray) -> None:
-    for x1, y1, x2, y2 in segments:
-        ax.plot([x1, x2], [y1, y2], color=WALL_COLOUR, lw=1.0, solid_capstyle="butt")
 
 
 def _attempt_windows(events: Sequence[dict[str, Any]]) -> list[tuple[float, float, str]]:
@@ -68,8 +58,8 @@ def exploration_figure(
     """Fig. 4a: world walls, the true path, dots where an attempt failed at once, full stars
     (green) where an island was built, partial stars (orange) where an attempt was dismissed.
     `truth_path` rows are (t [s], x [m], y [m], theta [rad])."""
-    fig, ax = plt.subplots(figsize=(10, 7))
-    _draw_walls(ax, segments)
+    fig, ax = pyplot().subplots(figsize=(10, 7))
+    draw_walls(ax, segments, color=WALL_COLOUR, linewidth=1.0)
     if truth_path.shape[0]:
         ax.plot(truth_path[:, 1], truth_path[:, 2], color="tab:blue", lw=0.6, alpha=0.6,
                 label="path (ground truth)")
@@ -117,7 +107,7 @@ def _layout(graph: TopoGraph, spacing_m: float) -> dict[int, tuple[float, float]
 def topology_figure(graph: TopoGraph, path: Path, title: str = "") -> Path:
     """Fig. 4b: every island's line model drawn in its own frame (x axis = the island's heading
     0), placed at a display position, with the links numbered as in strategies.txt."""
-    fig, ax = plt.subplots(figsize=(10, 7))
+    fig, ax = pyplot().subplots(figsize=(10, 7))
     extent = max([float(np.abs(i.model.segments).max()) if len(i.model) else 1.0
                   for i in graph.islands()] or [1.0])
     pos = _layout(graph, spacing_m=extent)

@@ -4,44 +4,13 @@ confidence) and 2 (residual plot). Matplotlib with the Agg backend; files writte
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 from island_msgs_py.types import FloatArray
 
-
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig: Any, path: str | os.PathLike[str], dpi: int = 110) -> Path:
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=target.suffix, dir=target.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=dpi)
-        os.replace(tmp, target)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    finally:
-        _pyplot().close(fig)
-    return target
-
-
-def _draw_walls(ax: Any, segments: FloatArray) -> None:
-    for x1, y1, x2, y2 in np.asarray(segments, dtype=np.float64):
-        ax.plot([x1, x2], [y1, y2], color="black", linewidth=1.2)
+from island_mapping.viz import draw_walls, pyplot, save_figure
 
 
 def plot_map(
@@ -56,7 +25,7 @@ def plot_map(
     vmax: float | None = None,
 ) -> Path:
     """A (ny, nx) map on cell centres xs, ys [m] with the walls on top, axes in metres."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 6.0))
     dx = float(xs[1] - xs[0]) if xs.shape[0] > 1 else 1.0
     dy = float(ys[1] - ys[0]) if ys.shape[0] > 1 else 1.0
@@ -66,14 +35,14 @@ def plot_map(
                                          else 1.0)
     im = ax.imshow(masked, origin="lower", extent=extent, cmap="viridis", vmin=vmin,
                    vmax=max(top, vmin + 1e-9), interpolation="nearest")
-    _draw_walls(ax, segments)
+    draw_walls(ax, segments)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal")
     ax.set_title(title)
     fig.colorbar(im, ax=ax, label=label, shrink=0.85)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_residuals(
@@ -83,7 +52,7 @@ def plot_residuals(
     threshold: float = 0.4,
 ) -> Path:
     """Paper Fig. 2: number of points whose |residual| exceeds a value, against the value."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     levels = np.linspace(0.0, 1.0, 101)
     for name, res in residuals.items():
@@ -98,14 +67,14 @@ def plot_residuals(
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_scatter(
     measure: npt.ArrayLike, confidence: npt.ArrayLike, path: str | os.PathLike[str], title: str
 ) -> Path:
     """Normalized measure against localization confidence, one dot a grid point."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(5.0, 5.0))
     ax.scatter(np.asarray(measure), np.asarray(confidence), s=6, alpha=0.5)
     ax.plot([0, 1], [0, 1], color="grey", linewidth=1)
@@ -115,4 +84,4 @@ def plot_scatter(
     ax.set_ylim(-0.02, 1.02)
     ax.set_title(title)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path, dpi=110)

@@ -4,43 +4,19 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from island_mapping.core.realdata import RealIsland, RingScores, SonarReadings
+from island_mapping.viz import pyplot, save_figure
 
 # Islands per row of the Fig. 5b-like layout, and the gap between their boxes [m].
 _MAX_COLUMNS = 10
 _GAP_M = 2.0
 
 
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def save_figure_atomic(fig: Any, path: str | os.PathLike[str], dpi: int = 120) -> Path:
-    """Save a matplotlib figure to `path` via a temporary file in the same directory."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=target.suffix, dir=target.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=dpi)
-        os.replace(tmp, target)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return target
 
 
 def island_layout(islands: Sequence[RealIsland]) -> list[tuple[float, float]]:
@@ -62,7 +38,7 @@ def plot_islands(
 ) -> Path:
     """Each island's line model drawn in its own frame, a dot at its origin, laid out in a grid
     (like the paper's Fig. 5b); the island id and its best normalized measure label each."""
-    plt = _pyplot()
+    plt = pyplot()
     offsets = island_layout(islands)
     fig, ax = plt.subplots(figsize=(10, 10))
     colours = {"line": "tab:blue", "fisher": "tab:green"}
@@ -80,8 +56,7 @@ def plot_islands(
     ax.set_ylabel("y [m]")
     ax.set_title(title or f"{len(islands)} islands (blue: line model R, green: Fisher)")
     fig.tight_layout()
-    out = save_figure_atomic(fig, path)
-    plt.close(fig)
+    out = save_figure(fig, path)
     return out
 
 
@@ -89,7 +64,7 @@ def plot_ring_scores(
     readings: SonarReadings, scores: RingScores, path: str | os.PathLike[str]
 ) -> Path:
     """Box plot of R per motion label and R over the reading index coloured by label."""
-    plt = _pyplot()
+    plt = pyplot()
     labels = np.asarray(readings.labels)
     names = sorted(set(readings.labels))
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 8))
@@ -105,6 +80,5 @@ def plot_ring_scores(
     ax2.set_ylabel("R [-]")
     ax2.legend(markerscale=4, fontsize=8, loc="lower right")
     fig.tight_layout()
-    out = save_figure_atomic(fig, path)
-    plt.close(fig)
+    out = save_figure(fig, path)
     return out
