@@ -4,11 +4,11 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import networkx as nx
 import numpy as np
 from island_msgs_py.types import FloatArray
 
@@ -20,6 +20,8 @@ ACCEPTED_COLOUR = "tab:green"
 DISMISSED_COLOUR = "tab:orange"
 FAILED_COLOUR = "tab:red"
 DPI = 130
+LAYOUT_GAP_M = 2.0
+"""Space between two islands' drawings in the topology figure [m]."""
 
 
 def _save(fig: Any, path: Path) -> Path:
@@ -89,34 +91,28 @@ def exploration_figure(
     return _save(fig, path)
 
 
-def _layout(graph: TopoGraph, spacing_m: float) -> dict[int, tuple[float, float]]:
-    """Display positions of the islands: true origins when known (display only), else a
-    Kamada-Kawai layout of the topology. There is no global frame; this is for clarity only."""
-    islands = graph.islands()
-    if islands and all(i.origin_truth is not None for i in islands):
-        return {i.id: (i.origin_truth.x, i.origin_truth.y) for i in islands}  # type: ignore[union-attr]
-    g = nx.Graph()
-    g.add_nodes_from(i.id for i in islands)
-    g.add_edges_from((e.source, e.target) for e in graph.iter_edges())
-    if g.number_of_nodes() == 0:
-        return {}
-    pos = nx.kamada_kawai_layout(g) if g.number_of_nodes() > 1 else {islands[0].id: (0.0, 0.0)}
-    return {k: (float(v[0]) * spacing_m * 3, float(v[1]) * spacing_m * 3) for k, v in pos.items()}
+def _grid_layout(ids: Sequence[int], cell_m: float) -> dict[int, tuple[float, float]]:
+    """Display positions on a grid, islands in id order row by row (the exploration order).
+    There is no global frame: the layout only keeps the drawings apart."""
+    cols = max(1, math.ceil(math.sqrt(len(ids))))
+    return {i: ((k % cols) * cell_m, -(k // cols) * cell_m) for k, i in enumerate(sorted(ids))}
 
 
 def topology_figure(graph: TopoGraph, path: Path, title: str = "") -> Path:
     """Fig. 4b: every island's line model drawn in its own frame (x axis = the island's heading
-    0), placed at a display position, with the links numbered as in strategies.txt."""
-    fig, ax = pyplot().subplots(figsize=(10, 7))
+    0) on a display grid, with the links numbered as in strategies.txt."""
     extent = max([float(np.abs(i.model.segments).max()) if len(i.model) else 1.0
                   for i in graph.islands()] or [1.0])
-    pos = _layout(graph, spacing_m=extent)
+    pos = _grid_layout(graph.island_ids(), cell_m=2.0 * extent + LAYOUT_GAP_M)
+    cols = max(1, math.ceil(math.sqrt(max(1, len(pos)))))
+    fig, ax = pyplot().subplots(figsize=(min(4.0 * cols, 20.0), min(4.0 * cols, 20.0)))
     for k, e in enumerate(graph.edges()):
         if e.source in pos and e.target in pos:
             (x0, y0), (x1, y1) = pos[e.source], pos[e.target]
             ax.annotate("", xy=(x1, y1), xytext=(x0, y0),
-                        arrowprops={"arrowstyle": "->", "color": "0.4", "lw": 0.8})
-            ax.text((x0 + x1) / 2, (y0 + y1) / 2, f"L{k}", fontsize=7, color="0.25")
+                        arrowprops={"arrowstyle": "->", "color": "tab:blue", "lw": 0.8,
+                                    "alpha": 0.6, "connectionstyle": "arc3,rad=0.15"})
+            ax.text((x0 + x1) / 2, (y0 + y1) / 2, f"L{k}", fontsize=8, color="tab:blue")
     for isl in graph.islands():
         x, y = pos[isl.id]
         for x1, y1, x2, y2 in isl.model.segments:
@@ -126,8 +122,10 @@ def topology_figure(graph: TopoGraph, path: Path, title: str = "") -> Path:
         ax.annotate(f"{isl.id} ({isl.model_type.value}, {isl.r:.2f})", (x, y), xytext=(4, -10),
                     textcoords="offset points", fontsize=7)
     ax.set_aspect("equal")
-    ax.set_xlabel("display x [m] (each island in its own frame; no global frame)")
-    ax.set_ylabel("display y [m]")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.set_xlabel("each island in its own frame (red arrow: its x axis, 1 m); laid out on a grid "
+                  "for clarity, no global frame; links L<k> as in strategies.txt")
     ax.set_title(title or "Topological-metric map: islands of reliability (cf. paper Fig. 4b)")
     return _save(fig, path)
 
