@@ -82,3 +82,30 @@ def test_bad_parameters_fail_clearly(ros_context: Any, tmp_path: Path) -> None:
     with pytest.raises(BagError, match="already exists"):
         RecorderNode(context=ros_context, parameter_overrides=[
             Parameter("output_dir", value=str(tmp_path / "taken"))])
+
+
+def test_sigterm_closes_the_bag_cleanly(tmp_path: Path) -> None:
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "term"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "island_mapping.nodes.recorder_node", "--ros-args",
+         "-p", f"output_dir:={out}"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 30
+        while not (out / "term_0.mcap").exists():
+            assert time.monotonic() < deadline and proc.poll() is None, "recorder did not start"
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert "closed" in err
+    meta = yaml.safe_load((out / "metadata.yaml").read_text())
+    assert meta["rosbag2_bagfile_information"]["relative_file_paths"] == ["term_0.mcap"]

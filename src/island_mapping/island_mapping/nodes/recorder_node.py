@@ -18,10 +18,8 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-import rclpy
-from island_msgs_py.ros_params import ensure_ros_env
+from island_msgs_py.ros_params import run_node
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -60,6 +58,7 @@ class RecorderNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
+        self._closed = True  # nothing to close until the recorder exists
         stamp = time.strftime("%Y_%m_%d-%H_%M_%S", time.gmtime())
         out = self.declare_parameter(
             "output_dir",
@@ -68,12 +67,17 @@ class RecorderNode(Node):
         ).value
         self.config = declare_recorder_config(self)
         self.recorder = RunRecorder(self, out, config=self.config)
+        self._closed = False
         self.get_logger().info(
             f"recording {'all topics' if not self.config.topics else self.config.topics} "
             f"to {self.recorder.path}"
         )
 
     def close(self) -> None:
+        """Close the bag (summary + metadata.yaml); idempotent."""
+        if self._closed:
+            return
+        self._closed = True
         path = self.recorder.close()
         # After Ctrl-C the context is shut down and /rosout is gone: plain stderr.
         print(
@@ -82,33 +86,19 @@ class RecorderNode(Node):
             file=sys.stderr,
         )
 
+    def destroy_node(self) -> None:
+        self.close()
+        super().destroy_node()
+
 
 def _raise_interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    ensure_ros_env()
-    rclpy.init(args=list(args) if args is not None else None)
+    # SIGTERM (e.g. from a launcher) closes the bag like Ctrl-C; destroy_node closes it.
     signal.signal(signal.SIGTERM, _raise_interrupt)
-    try:
-        node = RecorderNode()
-    except BagError as exc:
-        print(f"recorder_node: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.close()
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(RecorderNode, NODE_NAME, args, config_errors=(BagError, ValueError))
 
 
 if __name__ == "__main__":
