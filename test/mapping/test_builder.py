@@ -21,6 +21,7 @@ from island_mapping.core.builder import (
     EventKind,
     IslandBuilder,
     RelativeCovariance,
+    RevisitConfig,
     StampSync,
     StarConfig,
     eq3_bound,
@@ -489,3 +490,130 @@ def test_stamp_sync_holds_a_scan_until_its_odometry_and_bounds_its_buffers() -> 
         sync.scan(200, np.ones(3), np.zeros(2))
     with pytest.raises(BuilderError, match="covariance"):
         sync.odometry(300, Pose2D(0.0, 0.0, 0.0), np.ones((2, 2)))
+
+
+# ----- revisits -----------------------------------------------------------------------------
+
+
+def box_world() -> World:
+    """A closed 13 m x 2.5 m corridor (ends at x = -13 and x = 0): features at both ends."""
+    h = HALF_WIDTH_M
+    segs = [[-13.0, -h, 0.0, -h], [-13.0, h, 0.0, h], [0.0, -h, 0.0, h], [-13.0, -h, -13.0, h]]
+    return World(np.array(segs), "box")
+
+
+def run_there_and_back(
+    builder: IslandBuilder, sim_s: float, tamper: Callable[[IslandBuilder], None] | None = None
+) -> Run:
+    """Start at (-3, 0) facing west; a stand-in follower drives west to x = -11, turns and
+    drives back east, stopping at x = -1.5. Exact odometry; its covariance grows with the path
+    followed (0.05 m per m). `tamper` is called once, when the robot turns back."""
+    world = box_world()
+    rng = np.random.default_rng(0)
+    robot = SimRobot(world, Pose2D(-3.0, 0.0, math.pi), rng, odometry=OdometryConfig.exact())
+    sonar = SonarModel(SonarConfig(), seed=0)
+    t, path, goal = 0.0, 0.0, math.pi
+    events: list[BuilderEvent] = []
+    modes: list[CommandMode] = []
+    last = robot.odom_pose
+    builder.on_odometry(t, last, np.zeros((3, 3)))
+    for _ in range(int(sim_s * 10)):
+        builder.on_ground_truth(robot.true_pose)
+        builder.on_scan(t, sonar.scan(world, robot.true_pose, rng), sonar.angles_rad)
+        cmd = builder.command(t)
+        events.extend(cmd.events)
+        modes.append(cmd.mode)
+        if any(e.kind is EventKind.HANDED_BACK and e.accepted_island_id for e in cmd.events):
+            builder.set_strategy(ControlStrategy.parse("Go 760"))  # the stand-in's record
+        if cmd.mode is CommandMode.FOLLOW:
+            p = robot.true_pose
+            if goal != 0.0 and p.x < -11.0:
+                goal = 0.0
+                if tamper is not None:
+                    tamper(builder)
+            err = math.remainder(goal - p.theta, 2 * math.pi)
+            w = float(np.clip(2.0 * err - math.cos(goal) * p.y, -1.0, 1.0))
+            v = 0.4 if abs(err) < 0.5 and (goal != 0.0 or p.x < -1.5) else 0.0
+        else:
+            v, w = cmd.v_mps, cmd.w_radps
+        for _ in range(STEPS_PER_SCAN):
+            robot.step(v, w, DT_S)
+            t += DT_S
+            o = robot.odom_pose
+            if cmd.mode is CommandMode.FOLLOW:
+                path += math.hypot(o.x - last.x, o.y - last.y)
+            last = o
+            s = 0.05 * path
+            builder.on_odometry(t, o, np.diag([s * s, s * s, 1e-6]))
+    return Run(builder, events, robot, modes)
+
+
+def test_a_known_island_is_recognised_linked_and_docked_onto_instead_of_rebuilt() -> None:
+    builder = IslandBuilder(BuilderConfig())
+    run = run_there_and_back(builder, 150.0)
+    acc = [e for e in run.events if e.kind is EventKind.ISLAND_ACCEPTED]
+    rev = [e for e in run.events if e.kind is EventKind.ISLAND_REVISITED]
+    assert [e.island.id for e in acc if e.island] == [0, 1]  # the start, the west end
+    assert rev, f"no revisit: {kinds(run.events)} refusals {builder.revisit_refusals}"
+    r = rev[0]
+    assert r.revisited_island_id == 0 and r.island_pose is not None
+    assert r.residual_m is not None and r.residual_m <= builder.config.revisit.max_residual_m
+    # The recognised pose is the true pose in island 0's frame (origin (-3, 0) facing west).
+    island0 = builder.islands[0]
+    assert island0.origin_truth is not None
+    k = run.events.index(r)
+    truth = Pose2D(r.odom_pose.x, r.odom_pose.y, r.odom_pose.theta).relative_to(
+        island0.origin_truth)  # exact odometry: odometry = truth
+    assert math.hypot(r.island_pose.x - truth.x, r.island_pose.y - truth.y) < 0.15
+    assert math.hypot(r.island_pose.x, r.island_pose.y) <= builder.config.revisit.max_dock_m
+    # An edge 1 -> 0 with the follower's strategy plus the drive onto the origin.
+    assert r.edge is not None and (r.edge.source, r.edge.target) == (1, 0)
+    steps = r.edge.strategy.steps
+    assert str(r.edge.strategy).startswith("Go 760, ")  # the record since island 1 ...
+    go = [st.metres for st in steps[1:] if st.kind.value == "Go"]  # ... then onto the origin
+    assert go == [pytest.approx(math.hypot(r.island_pose.x, r.island_pose.y), abs=0.01)]
+    assert r.edge.length_m > 7.0 and r.edge.weight == pytest.approx(
+        r.edge.length_m + r.edge.expected_error_m)
+    assert r.edge in builder.edges and len(builder.islands) == 2
+    # Then the robot docks onto island 0's origin, facing its heading, and hands back there.
+    back = next(e for e in run.events[k:] if e.kind is EventKind.HANDED_BACK)
+    assert back.accepted_island_id == 0
+    rel = back.odom_pose.relative_to(island0.origin_truth)
+    assert math.hypot(rel.x, rel.y) < 0.1 and abs(rel.theta) < math.radians(4.0)
+    assert builder.last_island is island0
+    assert back.epsilon_m == 0.0  # epsilon restarted at island 0
+    assert run.robot.collisions == 0
+    d = event_to_dict(r)
+    assert d["kind"] == "island_revisited" and d["revisited_island_id"] == 0
+    assert json.loads(json.dumps(d))["edge"]["target"] == 0
+
+
+def test_a_known_island_whose_model_does_not_fit_is_not_recognised() -> None:
+    def wrong_model(b: IslandBuilder) -> None:  # island 0 now claims a 6 m wide hall
+        i0 = b.islands[0]
+        segs = np.array([[-6.0, -3.0, 6.0, -3.0], [-6.0, 3.0, 6.0, 3.0], [-3.0, -3.0, -3.0, 3.0]])
+        b.islands[0] = replace(i0, model=LineModel(segs))
+
+    builder = IslandBuilder(BuilderConfig())
+    run = run_there_and_back(builder, 150.0, tamper=wrong_model)
+    assert EventKind.ISLAND_REVISITED not in kinds(run.events)
+    assert sum(builder.revisit_refusals.values()) > 0  # it was a candidate, and refused
+    # The builder fell back on eq. 3: a star near the east end.
+    starts = [e for e in run.events if e.kind is EventKind.ATTEMPT_STARTED]
+    assert any(e.anchor_odom is not None and e.anchor_odom.x > -6.0 for e in starts[2:])
+
+
+def test_without_candidates_the_eq3_path_is_unchanged() -> None:
+    def events(enabled: bool) -> list[tuple[EventKind, float, Pose2D]]:
+        cfg = BuilderConfig(revisit=RevisitConfig(enabled=enabled))
+        run = run_builder(dead_end_world(), Pose2D(-14.0, 0.0, 0.0), IslandBuilder(cfg), 140.0,
+                          lambda p: 0.05 * p, stop_x=-1.5)
+        return [(e.kind, e.t_s, e.odom_pose) for e in run.events]
+
+    on, off = events(True), events(False)
+    # Until a known island is near again (the robot stalls at the end, by island 1), the
+    # recognition has no candidate and the builder decides exactly as without it.
+    cut = min((t for k, t, _ in on if k is EventKind.ISLAND_REVISITED), default=math.inf)
+    on_before = [e for e in on if e[1] < cut]
+    assert [k for k, _, _ in on_before].count(EventKind.ISLAND_ACCEPTED) >= 2
+    assert on_before == [e for e in off if e[1] < cut]

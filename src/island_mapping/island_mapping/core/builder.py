@@ -52,11 +52,13 @@ from island_msgs_py.types import (
     LineModel,
     ModelType,
     Pose2D,
+    PrimitiveKind,
+    StrategyPrimitive,
     wrap_angle,
 )
 
 from island_mapping.core.fisher import FisherConfig
-from island_mapping.core.lines import LineFitConfig, fit_lines
+from island_mapping.core.lines import LineFitConfig, fit_lines, point_segment_distance
 from island_mapping.core.localize import LocalizeConfig, Solver, localize
 from island_mapping.core.measure import MeasureConfig, evaluate_models
 from island_msgs_py import json_io
@@ -130,6 +132,149 @@ class StarConfig:
             raise BuilderError(
                 f"StarConfig.min_leg_m ({self.min_leg_m}) exceeds leg_length_m "
                 f"({self.leg_length_m})"
+            )
+
+
+@dataclass(frozen=True)
+class RevisitConfig:
+    """Recognising an island the robot already built (beyond the paper: revisits on a loop).
+
+    Tried whenever the quick check passes (before deferring or starting a star): islands whose
+    origin lies near the odometric pose are searched for the recent scan points; a recognition
+    must converge with a small residual and pass the new-island localization check.
+    """
+
+    enabled: bool = field(
+        default=True, metadata={"help": "try to recognise known islands before a star [bool]"}
+    )
+    search_sigmas: float = field(
+        default=1.0,
+        metadata={
+            "help": "the position (heading) search spans this many sigmas of where the "
+            "candidate's origin may be: the odometric drift since its origin was last known, "
+            "or epsilon plus the error of its link to the last island (the odometry's "
+            "covariance is conservative: measured errors were 0.2-1 sigma) [-]"
+        },
+    )
+    search_min_m: float = field(
+        default=0.5, metadata={"help": "smallest position search radius [m]"}
+    )
+    search_max_m: float = field(
+        default=4.0,
+        metadata={
+            "help": "largest position search radius; candidates that would need a larger "
+            "one are not searched (a match could be a look-alike place) [m]"
+        },
+    )
+    search_step_m: float = field(
+        default=0.3, metadata={"help": "spacing of the initial guesses of the search [m]"}
+    )
+    heading_step_deg: float = field(
+        default=5.0, metadata={"help": "spacing of the heading guesses [deg]"}
+    )
+    search_max_deg: float = field(
+        default=20.0,
+        metadata={
+            "help": "largest heading offset searched; candidates whose heading drift "
+            "(search_sigmas sigmas) exceeds it are not searched [deg]"
+        },
+    )
+    refine_guesses: int = field(
+        default=6,
+        metadata={"help": "best-scoring distinct guesses refined by localization [-]"},
+    )
+    inlier_m: float = field(
+        default=0.15,
+        metadata={"help": "a point within this of the model counts for a guess's score [m]"},
+    )
+    max_range_m: float = field(
+        default=4.0, metadata={"help": "only echoes up to this range are matched [m]"}
+    )
+    history_m: float = field(
+        default=3.0, metadata={"help": "scan points of this last path length are matched [m]"}
+    )
+    min_points: int = field(
+        default=40, metadata={"help": "fewest recent scan points to try a recognition [-]"}
+    )
+    max_points: int = field(
+        default=200, metadata={"help": "the recent points are thinned evenly to this many [-]"}
+    )
+    max_residual_m: float = field(
+        default=0.15, metadata={"help": "largest RMS residual of a recognition [m]"}
+    )
+    min_inlier_fraction: float = field(
+        default=0.6,
+        metadata={"help": "fewest points within inlier_m of the model at the recognised pose [-]"},
+    )
+    ambiguity_m: float = field(
+        default=0.5,
+        metadata={
+            "help": "refuse when two refined hypotheses that both fit lie farther apart than "
+            "this (the model fits at distinct places) [m]"
+        },
+    )
+    max_dock_m: float = field(
+        default=2.0,
+        metadata={"help": "the recognised island's origin must be this close to the robot [m]"},
+    )
+    path_clearance_m: float = field(
+        default=0.45,
+        metadata={
+            "help": "the straight drive to the origin must keep this far from the model's "
+            "walls (robot centre) [m]"
+        },
+    )
+    dock_tol_m: float = field(
+        default=0.05, metadata={"help": "docking at the origin ends within this distance [m]"}
+    )
+    dock_tol_deg: float = field(
+        default=3.0, metadata={"help": "and this heading [deg]"}
+    )
+    dock_looks: int = field(
+        default=2,
+        metadata={
+            "help": "look-around localizations at the origin (turn a full circle, localize, "
+            "re-dock if off) [-]"
+        },
+    )
+
+    def __post_init__(self) -> None:
+        for name in (
+            "search_sigmas",
+            "search_min_m",
+            "search_max_m",
+            "search_step_m",
+            "heading_step_deg",
+            "inlier_m",
+            "history_m",
+            "max_range_m",
+            "max_residual_m",
+            "ambiguity_m",
+            "max_dock_m",
+            "dock_tol_m",
+            "dock_tol_deg",
+        ):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise BuilderError(
+                    f"RevisitConfig.{name}: expected a finite number > 0, got {v!r}"
+                )
+        for name in ("search_max_deg", "path_clearance_m", "min_inlier_fraction"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise BuilderError(
+                    f"RevisitConfig.{name}: expected a finite number >= 0, got {v!r}"
+                )
+        for name in ("refine_guesses", "min_points", "max_points"):
+            iv = getattr(self, name)
+            if iv < 1:
+                raise BuilderError(f"RevisitConfig.{name}: expected >= 1, got {iv}")
+        if self.dock_looks < 0:
+            raise BuilderError(f"RevisitConfig.dock_looks: expected >= 0, got {self.dock_looks}")
+        if self.search_min_m > self.search_max_m:
+            raise BuilderError(
+                f"RevisitConfig.search_min_m ({self.search_min_m}) exceeds search_max_m "
+                f"({self.search_max_m})"
             )
 
 
@@ -248,6 +393,9 @@ class BuilderConfig:
     )
     star: StarConfig = field(
         default_factory=StarConfig, metadata={"help": "the four-corner star routine"}
+    )
+    revisit: RevisitConfig = field(
+        default_factory=RevisitConfig, metadata={"help": "recognising islands already built"}
     )
     localize: LocalizeConfig = field(
         default_factory=_point_to_line,
@@ -406,6 +554,7 @@ class EventKind(StrEnum):
     ISLAND_ACCEPTED = "island_accepted"
     ATTEMPT_DISMISSED = "attempt_dismissed"
     HANDED_BACK = "handed_back"  # the robot is back at the origin facing theta 0
+    ISLAND_REVISITED = "island_revisited"  # a known island recognised: no new island
 
 
 @dataclass(frozen=True)
@@ -415,7 +564,9 @@ class BuilderEvent:
     anchor_odom: the attempt pose in the odometry frame; legs_m: the legs driven so far as
     (bearing in the origin frame [rad], length [m]); measure: the best normalized measure
     max_i(R_i/T_i) so far; bound: E_min/epsilon at the attempt; partial: a dismissed star that
-    did not do all four legs.
+    did not do all four legs. island_revisited: revisited_island_id, island_pose (the robot in
+    that island's frame when recognised [m, rad]), residual_m (RMS of the fit [m]) and, when it
+    was added or made cheaper, the edge from the previous island.
     """
 
     kind: EventKind
@@ -431,6 +582,9 @@ class BuilderEvent:
     edge: Edge | None = None
     accepted_island_id: int | None = None
     reason: DismissReason | None = None
+    revisited_island_id: int | None = None
+    island_pose: Pose2D | None = None
+    residual_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -448,6 +602,7 @@ class _State(StrEnum):
     FOLLOWING = "following"
     STAR = "star"
     RETURNING = "returning"  # back to the origin, facing theta 0, then hand back
+    DOCKING = "docking"  # onto a recognised island's origin, then hand back
 
 
 class _LegPhase(StrEnum):
@@ -460,10 +615,38 @@ class _LegPhase(StrEnum):
 _LEG_BEARINGS_RAD = (0.0, 0.5 * math.pi, math.pi, -0.5 * math.pi)
 
 
+class _DockPhase(StrEnum):
+    GO = "go"  # drive to the (estimated) origin
+    ALIGN = "align"  # turn to the origin's heading
+    LOOK = "look"  # turn a full circle collecting scans, then localize
+
+
+@dataclass
+class _Dock:
+    island: Island
+    target: Pose2D  # the island origin in the odometry frame (estimated) [m, rad]
+    looks_left: int
+    phase: _DockPhase = _DockPhase.GO
+    turned_rad: float = 0.0
+    prev_theta: float = 0.0
+    points: list[FloatArray] = field(default_factory=list)  # odometry frame [m]
+
+
+@dataclass(frozen=True)
+class Recognition:
+    """A known island found in the recent scan points: the robot's pose in its frame."""
+
+    island_id: int
+    pose: Pose2D  # the robot in the island frame [m, rad]
+    residual_m: float
+    inlier_fraction: float
+
+
 @dataclass
 class _Attempt:
     anchor: Pose2D  # odometry pose of the island origin
     anchor_truth: Pose2D | None
+    anchor_cov: FloatArray
     epsilon_m: float
     bound: float
     first: bool
@@ -509,6 +692,14 @@ class IslandBuilder:
         self._last_scan: tuple[FloatArray, FloatArray] | None = None
         self._path_m = 0.0  # odometric path length while following [m]
         self._recent: deque[tuple[float, FloatArray]] = deque()  # (path_m, points in odom frame)
+        self._revisit_recent: deque[tuple[float, FloatArray]] = deque()  # same, longer
+        # Where each island's origin was last known in the odometry frame, and the odometry
+        # covariance then (the search for revisits grows with the drift since).
+        self._known: dict[int, tuple[Pose2D, FloatArray]] = {}
+        self._dock: _Dock | None = None
+        # Odometric pose of island b's origin in island a's frame, measured on an edge a -> b
+        # (one stretch of odometry), with its position and heading sigmas [m, rad].
+        self._links: dict[tuple[int, int], tuple[Pose2D, float, float]] = {}
         self._last_island: Island | None = None
         self._island_path_start_m = 0.0  # path length when the last island was handed back
         self._retry_at_path_m = 0.0
@@ -523,6 +714,8 @@ class IslandBuilder:
         self.edges: list[Edge] = []
         self.island_origins_odom: dict[int, Pose2D] = {}
         self.counts: dict[EventKind, int] = {k: 0 for k in EventKind}
+        # Why refined revisit hypotheses were refused (diagnostics): reason -> count.
+        self.revisit_refusals: dict[str, int] = {}
 
     # ----- inputs -----
 
@@ -572,9 +765,19 @@ class IslandBuilder:
             rel = self._odom.relative_to(att.anchor)
             if math.hypot(rel.x, rel.y) <= self.config.centre_radius_m:
                 att.centre_points.append(local)
+        if self._state is _State.DOCKING and self._dock is not None:
+            if self._dock.phase is _DockPhase.LOOK:
+                self._dock.points.append(pts)
+            return
         self._recent.append((self._path_m, pts))
         while self._recent and self._recent[0][0] < self._path_m - self.config.quick_history_m:
             self._recent.popleft()
+        if self._state is _State.FOLLOWING:
+            hist = self._revisit_recent
+            near = r <= self.config.revisit.max_range_m  # far sonar echoes are wide cones
+            hist.append((self._path_m, _scan_points(r[near], a[near], self._odom)))
+            while hist and hist[0][0] < self._path_m - self.config.revisit.history_m:
+                hist.popleft()
 
     # ----- queries -----
 
@@ -610,9 +813,11 @@ class IslandBuilder:
             v, w = self._star_step()
         if self._state is _State.RETURNING:
             v, w = self._return_step()
+        if self._state is _State.DOCKING:
+            v, w = self._dock_step()
         mode = (
             CommandMode.DRIVE
-            if self._state in (_State.STAR, _State.RETURNING)
+            if self._state in (_State.STAR, _State.RETURNING, _State.DOCKING)
             else (CommandMode.FOLLOW if self._state is _State.FOLLOWING else CommandMode.DRIVE)
         )
         events, self._events = tuple(self._events), []
@@ -646,7 +851,8 @@ class IslandBuilder:
         )
         if stalled:  # deferring, but the robot stopped moving on: attempt here
             self._defer_prev, self._defer_m = None, 0.0
-            self._start_attempt(first=False)
+            if not self._try_revisit():
+                self._start_attempt(first=False)
             return
         if self._path_m < self._retry_at_path_m:
             return
@@ -669,6 +875,9 @@ class IslandBuilder:
                 bound=bound,
             )
             return
+        if self._try_revisit():  # a place worth an island: is it one the robot already has?
+            self._defer_prev, self._defer_m = None, 0.0
+            return
         rising = self._defer_prev is None or quick > self._defer_prev * (
             1.0 + cfg.defer_rise_fraction
         )
@@ -689,6 +898,7 @@ class IslandBuilder:
         self._attempt = _Attempt(
             anchor=self._odom,
             anchor_truth=self._truth,
+            anchor_cov=self._cov.copy(),
             epsilon_m=eps,
             bound=bound,
             first=first,
@@ -831,6 +1041,9 @@ class IslandBuilder:
             self.edges.append(edge)
         self.islands.append(island)
         self.island_origins_odom[island.id] = att.anchor
+        if self._last_island is not None and self._last_island.id in self._known:
+            self._link(self._last_island.id, island.id, att.anchor, att.epsilon_m)
+        self._known[island.id] = (att.anchor, att.anchor_cov)
         self._last_island = island
         if self._star_rel is not None:  # epsilon restarts from the island origin
             self._rel.p = self._star_rel.p.copy()
@@ -851,14 +1064,322 @@ class IslandBuilder:
         """Do the points seen from the origin localize back onto it from offset guesses?"""
         att = self._attempt
         assert att is not None
-        cfg = self.config
         pts = np.concatenate(att.centre_points, axis=0) if att.centre_points else np.zeros((0, 2))
+        return self._localizes_back(model, pts, Pose2D(0.0, 0.0, 0.0))
+
+    def _localizes_back(self, model: LineModel, points_robot: FloatArray, at: Pose2D) -> bool:
+        """The localization check: from `at` and from guesses `verify_offset_m` off it in four
+        directions, do the robot-frame points converge within `verify_tol_m` of `at`?"""
+        cfg = self.config
         d = cfg.verify_offset_m
         for gx, gy in ((0.0, 0.0), (d, 0.0), (-d, 0.0), (0.0, d), (0.0, -d)):
-            res = localize(model, pts, Pose2D(gx, gy, 0.0), cfg.localize)
-            if not res.converged or math.hypot(res.pose.x, res.pose.y) > cfg.verify_tol_m:
+            guess = Pose2D(at.x + gx, at.y + gy, at.theta)
+            res = localize(model, points_robot, guess, cfg.localize)
+            if not res.converged or math.hypot(res.pose.x - at.x, res.pose.y - at.y) > (
+                cfg.verify_tol_m
+            ):
                 return False
         return True
+
+    # ----- revisits -----
+
+    def recognize(self) -> Recognition | None:
+        """Search the known islands near the odometric pose for the recent scan points.
+
+        Candidates: islands whose origin, where it was last known in the odometry frame, could
+        be within `max_dock_m` of the robot given the search radius (search_sigmas times epsilon
+        plus the odometric drift since: sqrt of the largest eigenvalue of the growth of the
+        odometry's xy covariance). Per candidate, guesses on a grid around the odometric
+        estimate (and headings within search_sigmas heading sigmas, at most search_max_deg) are
+        scored by the fraction of points within inlier_m of the model; the best few distinct
+        ones are refined by localization. Accepted: converged, RMS residual <= max_residual_m,
+        inlier fraction >= min_inlier_fraction, within the search radius of the estimate, the
+        origin within max_dock_m over a straight path clear of the model's walls, and the
+        new-island localization check from there. The smallest residual wins.
+        """
+        rc = self.config.revisit
+        if not rc.enabled or not self._known or self._odom is None or not self._revisit_recent:
+            return None
+        pts_odom = np.concatenate([p for _, p in self._revisit_recent], axis=0)
+        if pts_odom.shape[0] < rc.min_points:
+            return None
+        if pts_odom.shape[0] > rc.max_points:
+            keep = np.linspace(0, pts_odom.shape[0] - 1, rc.max_points).round().astype(int)
+            pts_odom = pts_odom[keep]
+        pts = _to_frame(pts_odom, self._odom)
+        islands = {i.id: i for i in self.islands}
+        best: Recognition | None = None
+        for iid in sorted(self._known):
+            island = islands.get(iid)
+            if island is None or len(island.model) == 0:
+                continue
+            origin, sig_m, sig_th = min(self._estimates(iid), key=lambda e: e[1])
+            radius = max(rc.search_sigmas * sig_m, rc.search_min_m)
+            est = self._odom.relative_to(origin)  # the robot in the island frame, by odometry
+            if math.hypot(est.x, est.y) > radius + rc.max_dock_m:
+                continue
+            max_dth = rc.search_sigmas * sig_th
+            if radius > rc.search_max_m or max_dth > math.radians(rc.search_max_deg):
+                # The search could not cover where the island may be: a match inside it
+                # could be a look-alike place (doors repeat along corridors).
+                self._refuse("drift_too_large")
+                continue
+            found = self._search_island(island, pts, est, radius, max_dth)
+            if found is not None and (best is None or found.residual_m < best.residual_m):
+                best = found
+        return best
+
+    def _search_island(
+        self, island: Island, pts: FloatArray, est: Pose2D, radius_m: float, max_dth_rad: float
+    ) -> Recognition | None:
+        rc = self.config.revisit
+        segs = island.model.segments
+        n = math.floor(radius_m / rc.search_step_m + 1e-9)
+        ticks = np.arange(-n, n + 1) * rc.search_step_m
+        gx, gy = np.meshgrid(ticks, ticks)
+        inside = np.hypot(gx, gy) <= radius_m + 1e-9
+        offs = np.stack([gx[inside], gy[inside]], axis=1)
+        m = math.floor(max_dth_rad / math.radians(rc.heading_step_deg) + 1e-9)
+        dths = np.arange(-m, m + 1) * math.radians(rc.heading_step_deg)
+        guesses: list[tuple[float, Pose2D]] = []
+        for dth in dths:
+            th = est.theta + float(dth)
+            c, s_ = math.cos(th), math.sin(th)
+            rot = np.stack([c * pts[:, 0] - s_ * pts[:, 1], s_ * pts[:, 0] + c * pts[:, 1]], 1)
+            base = rot + np.array([est.x, est.y])
+            for chunk in np.array_split(offs, max(1, len(offs) // 40)):
+                world = (base[None, :, :] + chunk[:, None, :]).reshape(-1, 2)
+                d = point_segment_distance(world, segs).min(axis=1).reshape(len(chunk), -1)
+                score = np.mean(d <= rc.inlier_m, axis=1)
+                for k in range(len(chunk)):
+                    guesses.append(
+                        (float(score[k]), Pose2D(est.x + chunk[k, 0], est.y + chunk[k, 1], th))
+                    )
+        guesses.sort(key=lambda g: -g[0])
+        chosen: list[Pose2D] = []
+        for _, g in guesses:  # the best distinct guesses
+            if all(math.hypot(g.x - c.x, g.y - c.y) > 2 * rc.search_step_m for c in chosen):
+                chosen.append(g)
+            if len(chosen) >= rc.refine_guesses:
+                break
+        fits: list[Recognition] = []  # every hypothesis that fits the model well
+        for g in chosen:
+            res = localize(island.model, pts, g, self.config.localize)
+            p = res.pose
+            if not res.converged:
+                self._refuse("not_converged")
+                continue
+            if res.residual_m > rc.max_residual_m:
+                self._refuse("residual")
+                continue
+            if math.hypot(p.x - est.x, p.y - est.y) > radius_m:
+                self._refuse("outside_search_radius")
+                continue
+            world = _from_frame(pts, p)
+            inl = float(np.mean(point_segment_distance(world, segs).min(axis=1) <= rc.inlier_m))
+            if inl < rc.min_inlier_fraction:
+                self._refuse("inliers")
+                continue
+            fits.append(Recognition(island.id, p, float(res.residual_m), inl))
+        if not fits:
+            return None
+        best = min(fits, key=lambda f: f.residual_m)
+        p = best.pose
+        if any(math.hypot(f.pose.x - p.x, f.pose.y - p.y) > rc.ambiguity_m for f in fits):
+            self._refuse("ambiguous")  # the model fits at distinct places (e.g. along doors)
+            return None
+        if math.hypot(p.x, p.y) > rc.max_dock_m:
+            self._refuse("origin_too_far")
+            return None
+        if not self._path_clear(segs, p):
+            self._refuse("path_blocked")
+            return None
+        if not self._localizes_back(island.model, pts, p):
+            self._refuse("localization_check")
+            return None
+        return best
+
+    def _link(self, a: int, b: int, origin_b_odom: Pose2D, sigma_m: float) -> None:
+        """Remember where b's origin lies in a's frame (the odometry since a's origin)."""
+        t_ab = origin_b_odom.relative_to(self._known[a][0])
+        sig_th = math.sqrt(max(float(self._rel.p[2, 2]), 0.0))
+        old = self._links.get((a, b))
+        if old is None or sigma_m < old[1]:
+            self._links[a, b] = (t_ab, sigma_m, sig_th)
+
+    def _estimates(self, iid: int) -> list[tuple[Pose2D, float, float]]:
+        """Where island iid's origin may be in the odometry frame: (pose, position sigma [m],
+        heading sigma [rad]), from its last known odometric pose (the odometry's drift since)
+        and, when it is linked to the last island, through that link (epsilon plus the link's
+        own error)."""
+        assert self._odom is not None
+        origin, cov0 = self._known[iid]
+        grow = self._cov - cov0
+        w_xy = np.linalg.eigvalsh(0.5 * (grow[:2, :2] + grow[:2, :2].T))
+        out = [
+            (
+                origin,
+                max(self.epsilon_m, math.sqrt(max(float(w_xy[-1]), 0.0))),
+                math.sqrt(max(float(grow[2, 2]), 0.0)),
+            )
+        ]
+        last = self._last_island
+        if last is not None and last.id in self._known and last.id != iid:
+            base = self._known[last.id][0]
+            sig_rel_th = math.sqrt(max(float(self._rel.p[2, 2]), 0.0))
+            fwd, back = self._links.get((last.id, iid)), self._links.get((iid, last.id))
+            for link, inverse in ((fwd, False), (back, True)):
+                if link is not None:
+                    t = link[0].inverse() if inverse else link[0]
+                    out.append((base.compose(t), self.epsilon_m + link[1], sig_rel_th + link[2]))
+        return out
+
+    def _refuse(self, reason: str) -> None:
+        self.revisit_refusals[reason] = self.revisit_refusals.get(reason, 0) + 1
+
+    def _path_clear(self, segs: FloatArray, p: Pose2D) -> bool:
+        """Is the straight path from p to the island origin clear of the model's walls?"""
+        k = max(2, math.ceil(math.hypot(p.x, p.y) / 0.05) + 1)
+        line = np.stack([np.linspace(p.x, 0.0, k), np.linspace(p.y, 0.0, k)], axis=1)
+        clear = self.config.revisit.path_clearance_m
+        return bool(point_segment_distance(line, segs).min() >= clear)
+
+    def _try_revisit(self) -> bool:
+        """Recognise a known island here; on success the robot docks onto its origin."""
+        rec = self.recognize()
+        if rec is None:
+            return False
+        assert self._odom is not None
+        island = next(i for i in self.islands if i.id == rec.island_id)
+        p = rec.pose
+        dist = math.hypot(p.x, p.y)
+        # The drive to the origin, as the follower would record it: turn to it, go, turn.
+        steps: list[StrategyPrimitive] = []
+        if dist > self.config.revisit.dock_tol_m:
+            to_c = wrap_angle(math.atan2(-p.y, -p.x) - p.theta)
+            steps += [_rot(to_c), StrategyPrimitive(PrimitiveKind.GO, round(100 * dist))]
+            steps.append(_rot(-(p.theta + to_c)))
+        else:
+            steps.append(_rot(-p.theta))
+        steps = [s for s in steps if s.value != 0]
+        edge = None
+        prev = self._last_island
+        if prev is not None and prev.id != island.id:
+            length = max(self._path_m - self._island_path_start_m, 0.0) + dist
+            eps = self.epsilon_m
+            new = Edge(
+                source=prev.id,
+                target=island.id,
+                strategy=ControlStrategy(self._strategy.steps + tuple(steps)),
+                weight=length + eps,
+                length_m=length,
+                expected_error_m=eps,
+            )
+            pair = (prev.id, island.id)
+            old = next((k for k, e in enumerate(self.edges) if (e.source, e.target) == pair), None)
+            if old is None:
+                self.edges.append(new)
+                edge = new
+            elif new.weight < self.edges[old].weight:
+                self.edges[old] = new
+                edge = new
+        self._emit(
+            EventKind.ISLAND_REVISITED,
+            anchor_odom=self._odom.compose(p.inverse()),
+            revisited_island_id=island.id,
+            island_pose=p,
+            residual_m=rec.residual_m,
+            edge=edge,
+        )
+        if prev is not None and prev.id != island.id and prev.id in self._known:
+            self._link(prev.id, island.id, self._odom.compose(p.inverse()), self.epsilon_m)
+        self._dock = _Dock(
+            island=island,
+            target=self._odom.compose(p.inverse()),
+            looks_left=self.config.revisit.dock_looks,
+        )
+        self._state = _State.DOCKING
+        return True
+
+    def _dock_step(self) -> tuple[float, float]:
+        """Drive onto the recognised origin, face its heading, look around and re-localize."""
+        dock = self._dock
+        assert dock is not None and self._odom is not None
+        sc, rc = self.config.star, self.config.revisit
+        rel = self._odom.relative_to(dock.target)  # the robot in the island frame
+        if dock.phase is _DockPhase.GO:
+            cmd = self._drive_to_origin(rel)
+            if cmd is not None:
+                return cmd
+            dock.phase = _DockPhase.ALIGN
+        if dock.phase is _DockPhase.ALIGN:
+            err = wrap_angle(-rel.theta)
+            if abs(err) > math.radians(min(sc.heading_tol_deg, rc.dock_tol_deg)):
+                return 0.0, self._turn_rate(err)
+            if dock.looks_left <= 0:
+                return self._finish_dock()
+            dock.phase = _DockPhase.LOOK
+            dock.turned_rad, dock.prev_theta, dock.points = 0.0, self._odom.theta, []
+        # LOOK: a full circle in place, then localize from the odometric estimate.
+        dock.turned_rad += abs(wrap_angle(self._odom.theta - dock.prev_theta))
+        dock.prev_theta = self._odom.theta
+        if dock.turned_rad < 2.0 * math.pi:
+            return 0.0, sc.turn_rate_radps
+        dock.looks_left -= 1
+        pts = np.concatenate(dock.points, axis=0) if dock.points else np.zeros((0, 2))
+        res = localize(dock.island.model, _to_frame(pts, self._odom), rel, self.config.localize)
+        moved = math.hypot(res.pose.x - rel.x, res.pose.y - rel.y)
+        if res.converged and res.residual_m <= rc.max_residual_m and moved <= rc.max_dock_m:
+            dock.target = self._odom.compose(res.pose.inverse())
+            if math.hypot(res.pose.x, res.pose.y) <= rc.dock_tol_m and abs(
+                res.pose.theta
+            ) <= math.radians(rc.dock_tol_deg):
+                dock.looks_left = 0
+        else:
+            dock.looks_left = 0  # cannot do better than odometry
+        dock.phase = _DockPhase.GO
+        return 0.0, 0.0
+
+    def _turn_rate(self, err_rad: float) -> float:
+        sc = self.config.star
+        return float(
+            np.clip(sc.heading_gain_per_s * err_rad, -sc.turn_rate_radps, sc.turn_rate_radps)
+        )
+
+    def _drive_to_origin(self, rel: Pose2D) -> tuple[float, float] | None:
+        """(v, w) toward the island origin (forward, or reversing when it is just behind),
+        or None when there (or when the way ahead is blocked)."""
+        sc = self.config.star
+        dist = math.hypot(rel.x, rel.y)
+        if dist <= sc.position_tol_m:
+            return None
+        to_c = math.atan2(-rel.y, -rel.x)
+        err = wrap_angle(to_c - rel.theta)
+        if abs(err) > 0.5 * math.pi and dist < 0.3:  # overshot a little: reverse onto it
+            err_b = wrap_angle(to_c + math.pi - rel.theta)
+            return -min(sc.speed_mps, 2.0 * dist), self._turn_rate(err_b)
+        if abs(err) > math.radians(10.0):
+            return 0.0, self._turn_rate(err)
+        if self._ahead_free_m() < min(sc.clearance_m, 0.5):
+            return None  # something in the way: dock where it stands
+        return min(sc.speed_mps, 2.0 * dist), self._turn_rate(err)
+
+    def _finish_dock(self) -> tuple[float, float]:
+        dock = self._dock
+        assert dock is not None and self._odom is not None
+        iid = dock.island.id
+        self._last_island = dock.island
+        self._island_path_start_m = self._path_m
+        self._strategy = ControlStrategy(())
+        self._rel.reset()  # the robot knows where it is: at the island's origin
+        self._known[iid] = (dock.target, self._cov.copy())
+        self._retry_at_path_m = self._path_m
+        self._emit(EventKind.HANDED_BACK, anchor_odom=dock.target, accepted_island_id=iid)
+        self._dock = None
+        self._recent.clear()
+        self._revisit_recent.clear()
+        self._state = _State.FOLLOWING
+        return 0.0, 0.0
 
     def _dismiss(self, partial: bool, reason: DismissReason | None = None) -> None:
         att = self._attempt
@@ -1024,6 +1545,18 @@ def _scan_points(r: FloatArray, a: FloatArray, pose: Pose2D) -> FloatArray:
     return np.stack([pose.x + r[ok] * np.cos(ang), pose.y + r[ok] * np.sin(ang)], axis=1)
 
 
+def _rot(angle_rad: float) -> StrategyPrimitive:
+    """A Rot step of the strategy (degrees CCW in [0, 360))."""
+    return StrategyPrimitive(PrimitiveKind.ROT, round(math.degrees(angle_rad)) % 360)
+
+
+def _from_frame(points: FloatArray, frame: Pose2D) -> FloatArray:
+    """(K, 2) points [m] of `frame` expressed in its parent frame."""
+    c, s = math.cos(frame.theta), math.sin(frame.theta)
+    x = frame.x + c * points[:, 0] - s * points[:, 1]
+    return np.stack([x, frame.y + s * points[:, 0] + c * points[:, 1]], axis=1)
+
+
 def _to_frame(points: FloatArray, frame: Pose2D) -> FloatArray:
     """(K, 2) points [m] of the parent frame expressed in `frame`."""
     c, s = math.cos(frame.theta), math.sin(frame.theta)
@@ -1052,4 +1585,10 @@ def event_to_dict(e: BuilderEvent) -> dict[str, object]:
         d["accepted_island_id"] = e.accepted_island_id
     if e.reason is not None:
         d["reason"] = e.reason.value
+    if e.revisited_island_id is not None:
+        d["revisited_island_id"] = e.revisited_island_id
+    if e.island_pose is not None:
+        d["island_pose"] = json_io.pose_to_dict(e.island_pose)
+    if e.residual_m is not None:
+        d["residual_m"] = e.residual_m
     return d

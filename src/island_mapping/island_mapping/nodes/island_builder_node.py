@@ -131,8 +131,14 @@ class IslandBuilderNode(Node):
             if e.edge is not None:
                 req.parameters.append(cv.edge_to_parameter(e.edge))
             self.add_cli.call_async(req).add_done_callback(self._on_added)
+        if e.kind is EventKind.ISLAND_REVISITED and e.edge is not None:
+            self.get_logger().info(f"island {e.revisited_island_id} revisited: edge "
+                                   f"{e.edge.source}->{e.edge.target}")
+            req = SetParameters.Request()
+            req.parameters = [cv.edge_to_parameter(e.edge)]
+            self.add_cli.call_async(req).add_done_callback(self._on_added)
         if e.kind is EventKind.HANDED_BACK and e.accepted_island_id is not None:
-            # At the new island's origin: the follower's record restarts here, then it resumes.
+            # At a new or revisited island's origin: the follower's record restarts, it resumes.
             self._enable_pending = True
             fut = self.reset_cli.call_async(Trigger.Request())
             fut.add_done_callback(lambda _f: self._send_enable(True))
