@@ -173,7 +173,7 @@ class RevisitConfig:
         default=5.0, metadata={"help": "spacing of the heading guesses [deg]"}
     )
     search_max_deg: float = field(
-        default=20.0,
+        default=30.0,
         metadata={
             "help": "largest heading offset searched; candidates whose heading drift "
             "(search_sigmas sigmas) exceeds it are not searched [deg]"
@@ -214,7 +214,7 @@ class RevisitConfig:
         },
     )
     max_dock_m: float = field(
-        default=2.0,
+        default=3.0,
         metadata={"help": "the recognised island's origin must be this close to the robot [m]"},
     )
     path_clearance_m: float = field(
