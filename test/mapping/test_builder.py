@@ -617,3 +617,14 @@ def test_without_candidates_the_eq3_path_is_unchanged() -> None:
     on_before = [e for e in on if e[1] < cut]
     assert [k for k, _, _ in on_before].count(EventKind.ISLAND_ACCEPTED) >= 2
     assert on_before == [e for e in off if e[1] < cut]
+
+
+def test_bad_revisit_config_names_the_field() -> None:
+    with pytest.raises(BuilderError, match=r"RevisitConfig\.search_min_m"):
+        RevisitConfig(search_min_m=5.0, search_max_m=4.0)
+    with pytest.raises(BuilderError, match=r"RevisitConfig\.max_points"):
+        RevisitConfig(max_points=0)
+    with pytest.raises(BuilderError, match=r"RevisitConfig\.max_residual_m"):
+        RevisitConfig(max_residual_m=math.nan)
+    with pytest.raises(BuilderError, match=r"StampSync\.max_buffer"):
+        StampSync(IslandBuilder(), max_buffer=0)
