@@ -224,6 +224,13 @@ class RevisitConfig:
             "walls (robot centre) [m]"
         },
     )
+    min_loop_m: float = field(
+        default=10.0,
+        metadata={
+            "help": "the last island is a candidate only after this much path since leaving "
+            "it (a loop back to it; just after it, driving back is no use) [m]"
+        },
+    )
     dock_tol_m: float = field(
         default=0.05, metadata={"help": "docking at the origin ends within this distance [m]"}
     )
@@ -259,7 +266,7 @@ class RevisitConfig:
                 raise BuilderError(
                     f"RevisitConfig.{name}: expected a finite number > 0, got {v!r}"
                 )
-        for name in ("search_max_deg", "path_clearance_m", "min_inlier_fraction"):
+        for name in ("search_max_deg", "path_clearance_m", "min_inlier_fraction", "min_loop_m"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise BuilderError(
@@ -1109,9 +1116,13 @@ class IslandBuilder:
         pts = _to_frame(pts_odom, self._odom)
         islands = {i.id: i for i in self.islands}
         best: Recognition | None = None
+        last = self._last_island
+        just_left = self._path_m - self._island_path_start_m < rc.min_loop_m
         for iid in sorted(self._known):
             island = islands.get(iid)
             if island is None or len(island.model) == 0:
+                continue
+            if last is not None and iid == last.id and just_left:
                 continue
             origin, sig_m, sig_th = min(self._estimates(iid), key=lambda e: e[1])
             radius = max(rc.search_sigmas * sig_m, rc.search_min_m)
