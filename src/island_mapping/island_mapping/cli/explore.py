@@ -77,6 +77,7 @@ def _counts(events: list[dict[str, Any]]) -> dict[str, int]:
         "failed_at_once": kinds.count("attempt_failed_at_once"),
         "accepted": kinds.count("island_accepted"),
         "dismissed": kinds.count("attempt_dismissed"),
+        "revisits": kinds.count("island_revisited"),
     }
 
 
@@ -172,7 +173,8 @@ def run(args: argparse.Namespace) -> int:
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     print(json.dumps({k: summary[k] for k in (
         "world", "sim_seconds", "real_time_factor", "attempts", "accepted", "dismissed",
-        "failed_at_once", "islands", "edges", "plain_hallway_islands", "collisions")}))
+        "failed_at_once", "revisits", "islands", "edges", "plain_hallway_islands",
+        "collisions")}))
     if isinstance(routes.get("islands_success_rate"), float):
         print(f"routes: islands {routes['islands_success_rate']:.0%}, "
               f"global odometry {routes['global_odometry_success_rate']:.0%} "

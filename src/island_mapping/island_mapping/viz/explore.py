@@ -19,6 +19,7 @@ WALL_COLOUR = "0.55"
 ACCEPTED_COLOUR = "tab:green"
 DISMISSED_COLOUR = "tab:orange"
 FAILED_COLOUR = "tab:red"
+REVISITED_COLOUR = "tab:purple"
 DPI = 130
 LAYOUT_GAP_M = 2.0
 """Space between two islands' drawings in the topology figure [m]."""
@@ -29,7 +30,8 @@ def _save(fig: Any, path: Path) -> Path:
 
 
 def _attempt_windows(events: Sequence[dict[str, Any]]) -> list[tuple[float, float, str]]:
-    """(t_start, t_end, outcome) of each star attempt: 'accepted' or 'dismissed'."""
+    """(t_start, t_end, outcome) of each star attempt or revisit docking, until the robot was
+    handed back: 'accepted', 'dismissed' or 'revisited'."""
     out: list[tuple[float, float, str]] = []
     start: float | None = None
     outcome = ""
@@ -42,6 +44,9 @@ def _attempt_windows(events: Sequence[dict[str, Any]]) -> list[tuple[float, floa
             outcome = "accepted"
         elif kind == "attempt_dismissed":
             outcome = "dismissed"
+        elif kind == "island_revisited":
+            start = t if start is None else start
+            outcome = "revisited"
         elif kind == "handed_back" and start is not None:
             out.append((start, t, outcome or "dismissed"))
             start = None
@@ -68,7 +73,8 @@ def exploration_figure(
     t = truth_path[:, 0] if truth_path.shape[0] else np.zeros(0)
     for t0, t1, outcome in _attempt_windows(events):
         sel = (t >= t0) & (t <= t1)
-        colour = ACCEPTED_COLOUR if outcome == "accepted" else DISMISSED_COLOUR
+        colour = {"accepted": ACCEPTED_COLOUR, "revisited": REVISITED_COLOUR}.get(
+            outcome, DISMISSED_COLOUR)
         ax.plot(truth_path[sel, 1], truth_path[sel, 2], color=colour, lw=1.6)
     failed = [e["truth_pose"] for e in events
               if e.get("kind") == "attempt_failed_at_once" and "truth_pose" in e]
@@ -83,6 +89,12 @@ def exploration_figure(
                         textcoords="offset points", fontsize=8)
     ax.plot([], [], color=ACCEPTED_COLOUR, lw=1.6, label="full star: island built")
     ax.plot([], [], color=DISMISSED_COLOUR, lw=1.6, label="partial star: dismissed")
+    revisits = [e["truth_pose"] for e in events
+                if e.get("kind") == "island_revisited" and "truth_pose" in e]
+    if revisits:
+        ax.scatter([p["x"] for p in revisits], [p["y"] for p in revisits], s=70, marker="s",
+                   facecolors="none", edgecolors=REVISITED_COLOUR, zorder=6,
+                   label="known island recognised (revisit)")
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
