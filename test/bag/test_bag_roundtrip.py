@@ -175,6 +175,7 @@ def test_metadata_yaml_agrees_with_channels(tmp_path: Path) -> None:
     msgs = _write(bag, "zstd")
     meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert meta["version"] == 9 and meta["storage_identifier"] == "mcap"
+    assert (bag / "metadata.yaml").stat().st_mode & 0o777 == 0o644
     assert meta["relative_file_paths"] == ["run_0.mcap"]
     assert meta["message_count"] == len(msgs)
     with (bag / "run_0.mcap").open("rb") as fh:

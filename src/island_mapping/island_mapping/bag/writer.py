@@ -42,6 +42,8 @@ ROSBAG2_VERSION = 9
 ROS_DISTRO = "jazzy"
 CLOCK_TOPIC = "/clock"
 METADATA_FILE = "metadata.yaml"
+FILE_MODE = 0o644
+"""Permissions of written files (rw-r--r--, like any file a tool writes)."""
 
 
 class Compression(StrEnum):
@@ -97,7 +99,7 @@ class _DirectFile:
     """
 
     def __init__(self, path: Path) -> None:
-        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, FILE_MODE)
         self._pos = 0
 
     def write(self, data: Any) -> int:
@@ -139,6 +141,7 @@ def write_text_atomic(path: Path, text: str) -> None:
     """Write `text` to `path` via a temporary file in the same directory and os.replace."""
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        os.chmod(tmp, FILE_MODE)  # mkstemp's 0600 would make the bag unreadable to others
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
             fh.flush()
