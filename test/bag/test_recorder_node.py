@@ -88,23 +88,34 @@ def test_sigterm_closes_the_bag_cleanly(tmp_path: Path) -> None:
     import signal
     import subprocess
     import sys
-    import time
+    import threading
 
     out = tmp_path / "term"
     proc = subprocess.Popen(
         [sys.executable, "-m", "island_mapping.nodes.recorder_node", "--ros-args",
          "-p", f"output_dir:={out}"],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    lines: list[str] = []
+    ready = threading.Event()
+
+    def read_stderr() -> None:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            lines.append(line)
+            if "recording" in line:  # logged when the node is fully built
+                ready.set()
+
+    reader = threading.Thread(target=read_stderr, daemon=True)
+    reader.start()
     try:
-        deadline = time.monotonic() + 30
-        while not (out / "term_0.mcap").exists():
-            assert time.monotonic() < deadline and proc.poll() is None, "recorder did not start"
-            time.sleep(0.05)
+        assert ready.wait(30), f"recorder did not start: {''.join(lines)}"
         proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=30)
+        proc.wait(timeout=30)
+        reader.join(timeout=10)
     finally:
         if proc.poll() is None:
             proc.kill()
+    err = "".join(lines)
     assert proc.returncode == 0, err
     assert "closed" in err
     meta = yaml.safe_load((out / "metadata.yaml").read_text())

@@ -72,8 +72,11 @@ def run_node(
     args: Sequence[str] | None = None,
     config_errors: tuple[type[BaseException], ...] = (ValueError,),
 ) -> int:
-    """The whole `main()` of a node: init, build it, spin until Ctrl-C or shutdown, clean up.
+    """The whole `main()` of a node: init, build it, spin until Ctrl-C, SIGTERM or shutdown, then
+    destroy it (so a node that holds a file closes it) and shut down.
 
+    rclpy turns SIGINT and SIGTERM into a shutdown of the context; one that arrives while the
+    node is still being built makes the construction fail, which is a clean exit, not an error.
     An exception of `config_errors` while building the node (a bad parameter, an unreadable world
     or graph store) is printed as `<name>: error: ...` and gives exit code 2.
     """
@@ -81,20 +84,29 @@ def run_node(
 
     ensure_ros_env()
     rclpy.init(args=list(args) if args is not None else None)
+    node: Node | None = None
+    executor: SingleThreadedExecutor | None = None
     try:
-        node = factory()
-    except config_errors as exc:
-        print(f"{name}: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return EXIT_BAD_CONFIG
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
+        try:
+            node = factory()
+        except config_errors as exc:
+            if not rclpy.ok():
+                return 0  # stopped while starting
+            print(f"{name}: error: {exc}", file=sys.stderr)
+            return EXIT_BAD_CONFIG
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        if rclpy.ok():
+            raise
+        # stopped while starting: what failed was the shut-down context
     finally:
-        executor.shutdown()
-        node.destroy_node()
+        if executor is not None:
+            executor.shutdown()
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()
     return 0

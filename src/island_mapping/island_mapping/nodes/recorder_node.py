@@ -12,7 +12,6 @@ Ctrl-C or SIGTERM closes the bag properly (summary + metadata.yaml); after SIGKI
 from __future__ import annotations
 
 import dataclasses
-import signal
 import sys
 import time
 from collections.abc import Sequence
@@ -91,13 +90,8 @@ class RecorderNode(Node):
         super().destroy_node()
 
 
-def _raise_interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
-
-
 def main(args: Sequence[str] | None = None) -> int:
-    # SIGTERM (e.g. from a launcher) closes the bag like Ctrl-C; destroy_node closes it.
-    signal.signal(signal.SIGTERM, _raise_interrupt)
+    # SIGTERM (e.g. from a launcher) stops it like Ctrl-C (run_node); destroy_node closes the bag.
     return run_node(RecorderNode, NODE_NAME, args, config_errors=(BagError, ValueError))
 
 
