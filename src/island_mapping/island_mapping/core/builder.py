@@ -112,6 +112,14 @@ class StarConfig:
     heading_tol_deg: float = field(
         default=2.0, metadata={"help": "a rotation is done within this heading error [deg]"}
     )
+    drive_heading_err_deg: float = field(
+        default=20.0,
+        metadata={
+            "help": "on a leg, turn in place instead of driving while the heading is off the "
+            "leg's line by more than this (measured live: a leg begun while the follower was "
+            "still being paused started 46 deg off, swung wider and touched a wall) [deg]"
+        },
+    )
 
     def __post_init__(self) -> None:
         for name in (
@@ -124,6 +132,7 @@ class StarConfig:
             "heading_gain_per_s",
             "position_tol_m",
             "heading_tol_deg",
+            "drive_heading_err_deg",
         ):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
@@ -987,6 +996,8 @@ class IslandBuilder:
         """Drive along the leg's line through the origin (forward or reversing), holding heading."""
         sc = self.config.star
         heading_err = wrap_angle(bearing - self._pose_in_anchor().theta)
+        if abs(heading_err) > math.radians(sc.drive_heading_err_deg):
+            return 0.0, self._turn_rate(heading_err)
         # Steer back onto the line: a lateral offset to the left calls for a right turn going
         # forward and a left turn reversing.
         steer = heading_err - math.copysign(1.0, v) * 1.5 * lateral_m
