@@ -22,6 +22,7 @@ from typing import Any
 
 import rclpy
 from geometry_msgs.msg import Twist
+from island_msgs_py.qos import LATCHED, STREAM_QOS
 from island_msgs_py.ros_params import declare_config, ensure_ros_env
 from island_msgs_py.types import ControlStrategy, IslandTypeError
 from island_sim.conversions import (
@@ -35,7 +36,6 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.srv import SetParameters
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
@@ -46,11 +46,6 @@ from island_msgs_py import conversions as cv
 
 NODE_NAME = "island_builder_node"
 WARN_THROTTLE_S = 2.0
-STREAM_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
-                        reliability=ReliabilityPolicy.RELIABLE)
-LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                     reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 ODOM_BUFFER = 200  # stamps kept for pairing scans with odometry (4 s at 50 Hz)
 
 

@@ -21,6 +21,7 @@ from typing import Any
 import rclpy
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from island_msgs_py.json_io import GraphFormatError
+from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import declare_config, ensure_ros_env
 from island_msgs_py.types import IslandTypeError, Pose2D
 from island_sim.conversions import (
@@ -33,7 +34,6 @@ from island_sim.conversions import (
 from nav_msgs.msg import Odometry
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
 
@@ -43,8 +43,6 @@ from island_msgs_py import json_io
 
 NODE_NAME = "island_localizer_node"
 WARN_THROTTLE_S = 2.0
-STREAM_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
-                        reliability=ReliabilityPolicy.RELIABLE)
 ODOM_BUFFER = 200  # odometry stamps kept for pairing scans (4 s at 50 Hz)
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from island_msgs_py.json_io import GraphFormatError
+from island_msgs_py.qos import LATCHED
 from island_msgs_py.ros_params import declare_config, run_node
 from island_msgs_py.types import Island, IslandTypeError
 from nav_msgs.msg import Path as PathMsg
@@ -32,7 +33,6 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter as RclpyParameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
@@ -47,12 +47,6 @@ from island_mapping.core.graph import (
 from island_msgs_py import conversions as cv
 
 NODE_NAME = "topo_graph_server"
-LATCHED = QoSProfile(
-    depth=1,
-    history=HistoryPolicy.KEEP_LAST,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
 WARN_THROTTLE_S = 1.0
 MEMORY_EXPORT_DIR = "topo_graph_export"  # save target when in memory and no output_dir
 

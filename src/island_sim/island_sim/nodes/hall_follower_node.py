@@ -24,11 +24,11 @@ from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import Twist
+from island_msgs_py.qos import LATCHED, STREAM_QOS
 from island_msgs_py.ros_params import declare_config, run_node
 from island_msgs_py.types import FloatArray, Pose2D
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
@@ -48,11 +48,6 @@ from island_sim.core.hall_follower import (
 
 NODE_NAME = "hall_follower_node"
 WARN_THROTTLE_S = 2.0
-STREAM_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
-                        reliability=ReliabilityPolicy.RELIABLE)
-LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                     reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 @dataclass(frozen=True)

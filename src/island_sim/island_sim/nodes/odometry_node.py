@@ -25,11 +25,11 @@ from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import Twist
+from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import declare_config, run_node
 from island_msgs_py.types import Pose2D
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
 from island_sim.conversions import (
@@ -52,8 +52,6 @@ WARN_THROTTLE_S = 2.0
 _MAX_STEPS_PER_CALLBACK = 50
 # Wall period [s] of the pacing timer when a real-time factor is set.
 _PACING_PERIOD_S = 0.005
-STREAM_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
-                        reliability=ReliabilityPolicy.RELIABLE)
 
 
 class OdometryNodeError(ValueError):

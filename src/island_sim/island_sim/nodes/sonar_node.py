@@ -17,10 +17,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import declare_config, run_node
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import LaserScan, Range
 
 from island_sim.conversions import ConversionError, arrays_to_scan, odometry_to_pose, range_msg
@@ -30,8 +30,6 @@ from island_sim.core.world import load_world
 
 NODE_NAME = "sonar_node"
 WARN_THROTTLE_S = 2.0
-STREAM_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
-                        reliability=ReliabilityPolicy.RELIABLE)
 
 
 class SonarNodeError(ValueError):
