@@ -27,7 +27,7 @@ from island_msgs_py.types import Pose2D
 from island_sim.core.world import WorldError, load_world
 
 from island_mapping.cli import CliError
-from island_mapping.cli.fig3 import ProgressBar
+from island_mapping.cli.progress import ProgressBar
 from island_mapping.core.graph import TopoGraph
 from island_mapping.core.navigate import NavigateError, SimSetup, evaluate_routes
 from island_mapping.core.placement import (

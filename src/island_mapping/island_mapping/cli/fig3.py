@@ -22,40 +22,15 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
-import time
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from island_mapping.cli import CliError
 from island_mapping.cli.measure import load_world_or_fail
+from island_mapping.cli.progress import ProgressBar
 from island_mapping.core.fisher import FisherConfig, FisherError
 from island_mapping.core.measure import MeasureConfig, MeasureError
-
-
-class ProgressBar:
-    """A one-line text progress bar on a stream (no dependency): `label [####....] 40/100`."""
-
-    def __init__(self, label: str, stream: Any = None, width: int = 30,
-                 min_interval_s: float = 0.2) -> None:
-        self.label = label
-        self.stream = stream if stream is not None else sys.stderr
-        self.width = width
-        self.min_interval_s = min_interval_s
-        self._last = -math.inf
-
-    def __call__(self, done: int, total: int) -> None:
-        now = time.monotonic()
-        if done < total and now - self._last < self.min_interval_s:
-            return
-        self._last = now
-        frac = done / total if total else 1.0
-        filled = round(frac * self.width)
-        bar = "#" * filled + "." * (self.width - filled)
-        end = "\n" if done >= total else ""
-        self.stream.write(f"\r{self.label} [{bar}] {done}/{total}{end}")
-        self.stream.flush()
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
