@@ -20,13 +20,19 @@ if [ ! -x "$ROOT/.venv/bin/python" ]; then
     fi
 fi
 VPY="$ROOT/.venv/bin/python"
+PIP_VERSION=26.3
 # Reinstall only when the pinned requirements or package metadata change.
 STAMP="$ROOT/.venv/.islands-setup-stamp"
-WANT="$(cat "$ROOT"/requirements*.txt "$ROOT"/src/*/setup.py "$ROOT"/src/*/setup.cfg | sha256sum | cut -d' ' -f1)"
+WANT="$( (echo "pip $PIP_VERSION"; cat "$ROOT"/requirements*.txt "$ROOT"/src/*/setup.py \
+          "$ROOT"/src/*/setup.cfg) | sha256sum | cut -d' ' -f1)"
 if [ "$(cat "$STAMP" 2>/dev/null)" != "$WANT" ]; then
     echo "setup: installing pinned packages into .venv (log: .venv/setup.log)" >&2
     LOG="$ROOT/.venv/setup.log"
-    if ! { "$VPY" -m pip install --disable-pip-version-check -r "$ROOT/requirements.txt" \
+    # A current pip first: Debian's venv pip (23.0) installs editable packages with the legacy
+    # `setup.py develop`, which honours setup.cfg's [develop] script_dir (lib/<pkg>, for colcon)
+    # and so leaves the console scripts off .venv/bin.
+    if ! { "$VPY" -m pip install --disable-pip-version-check "pip==$PIP_VERSION" &&
+           "$VPY" -m pip install --disable-pip-version-check -r "$ROOT/requirements.txt" \
                 -r "$ROOT/requirements-dev.txt" &&
            "$VPY" -m pip install --disable-pip-version-check --no-deps \
                 -e "$ROOT/src/island_msgs_py" -e "$ROOT/src/island_sim" -e "$ROOT/src/island_mapping"

@@ -82,3 +82,14 @@ def test_ci_runs_exactly_the_readme_test_command() -> None:
 def test_colcon_meta_names_every_package() -> None:
     meta = json.loads((ROOT / "colcon.meta").read_text())
     assert set(meta["names"]) == set(PACKAGES)
+
+
+@pytest.mark.parametrize("pkg", ("island_sim", "island_mapping"))
+def test_console_scripts_are_on_the_venv_bin(pkg: str) -> None:
+    """scripts/setup.sh promises every node and `islands` on .venv/bin (not only in lib/<pkg>)."""
+    setup_py = (ROOT / "src" / pkg / "setup.py").read_text()
+    names = re.findall(r"'(\w+) = [\w.]+:main'", setup_py)
+    assert names
+    bindir = Path(sys.executable).parent
+    missing = [n for n in names if not (bindir / n).exists()]
+    assert not missing, f"not in {bindir}: {missing} (run scripts/setup.sh)"
