@@ -470,7 +470,8 @@ def _localize_and_dock(sim: _Sim, island: Island, estimate: Pose2D) -> tuple[boo
     """Localize in the island from the estimate, check against truth, dock at the origin.
 
     Returns (trusted localization, its position error [m], heading error [deg]) of the FIRST
-    localization (the one that says whether the robot found the island)."""
+    localization, or when that is not trusted of the one the search along the hallway ended
+    with (the one that says whether the robot found the island); docking does not change it."""
     c = sim.cfg
     pts = _look_around(sim)
     res, trusted = localize_multi(island, pts, estimate, c)
