@@ -104,7 +104,7 @@ def test_play_subprocess_publishes_with_clock(
     proc = subprocess.Popen(
         [sys.executable, "-c", "import sys; from island_mapping.cli import main; sys.exit(main())",
          "bag", "play", str(small_bag),
-         "--rate", "4", "--delay", "2"],
+         "--rate", "4", "--wait-for", "/sonar/scan", "/clock"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
     try:
@@ -118,6 +118,6 @@ def test_play_subprocess_publishes_with_clock(
         node.destroy_node()
     assert proc.returncode == 0, err
     assert "published 11 messages" in out
-    # Whatever was received after discovery arrives in recorded order, with /clock.
-    assert scans and scans == sorted(scans) and set(scans) <= {10, 11, 12, 13, 14}
+    # The player waited for our subscriptions: every scan arrives, in recorded order, with /clock.
+    assert scans == [10, 11, 12, 13, 14]
     assert clocks and clocks == sorted(clocks)

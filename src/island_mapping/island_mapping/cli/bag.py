@@ -3,6 +3,7 @@
   islands bag info DIR_OR_FILE
   islands bag echo DIR_OR_FILE --topic T [--limit N] [--max-array N]
   islands bag play DIR_OR_FILE [--rate R] [--loop] [--topics T ...] [--no-clock] [--delay S]
+                   [--wait-for TOPIC ...]
   islands bag recover BROKEN.mcap [--out FIXED_DIR]
   islands bag import-carmen LOG --out DIR [--beams 16|24]
 """
@@ -11,10 +12,15 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from island_mapping.bag.errors import BagError
 from island_mapping.cli import CliError
+
+SUBSCRIBER_SETTLE_S = 0.3
+"""After a subscriber is discovered, time for its match with our publisher to complete."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -40,6 +46,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                    help="replay a recorded /clock as a plain topic instead")
     p.add_argument("--delay", type=float, default=0.0,
                    help="wait this long before playing, so subscribers are discovered [s]")
+    p.add_argument("--wait-for", nargs="+", default=(), metavar="TOPIC",
+                   help="before playing, wait until each of these topics has a subscriber "
+                        "(at most --wait-timeout)")
+    p.add_argument("--wait-timeout", type=float, default=30.0,
+                   help="longest wait for --wait-for subscribers [s]")
 
     p = sub.add_parser("recover", help="rescue the complete chunks of an interrupted recording")
     p.add_argument("broken", help="the damaged .mcap file (or its directory)")
@@ -132,6 +143,7 @@ def _play(args: argparse.Namespace) -> int:
         end = time.monotonic() + args.delay
         while time.monotonic() < end:
             executor.spin_once(timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
+        _wait_for_subscribers(node, executor, args.wait_for, args.wait_timeout)
         print(f"playing {reader.message_count} messages of {len(player.topics)} topics, "
               f"{reader.duration_ns / 1e9:.3f} s at rate {args.rate}", flush=True)
         player.play_all(executor)
@@ -141,6 +153,24 @@ def _play(args: argparse.Namespace) -> int:
         node.destroy_node()
         ctx.try_shutdown()
     return 0
+
+
+def _wait_for_subscribers(node: Any, executor: Any, topics: Sequence[str],
+                          timeout_s: float) -> None:
+    """Spin until every topic in `topics` has a subscriber, or raise CliError after timeout_s."""
+    deadline = time.monotonic() + timeout_s
+    missing = list(topics)
+    while missing:
+        missing = [t for t in topics if node.count_subscribers(t) == 0]
+        if not missing:
+            break
+        if time.monotonic() > deadline:
+            raise CliError(f"no subscriber on {', '.join(missing)} after {timeout_s:.0f} s")
+        executor.spin_once(timeout_sec=0.05)
+    if topics:  # discovery seen: give the publisher-subscription match a moment
+        settle = time.monotonic() + SUBSCRIBER_SETTLE_S
+        while time.monotonic() < settle:
+            executor.spin_once(timeout_sec=0.05)
 
 
 def _recover(args: argparse.Namespace) -> int:
