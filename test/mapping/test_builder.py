@@ -628,3 +628,20 @@ def test_bad_revisit_config_names_the_field() -> None:
         RevisitConfig(max_residual_m=math.nan)
     with pytest.raises(BuilderError, match=r"StampSync\.max_buffer"):
         StampSync(IslandBuilder(), max_buffer=0)
+
+
+@pytest.mark.parametrize(("record", "settled"), [
+    ("", True),  # just reset at an island: going straight out of it
+    ("Go 300", True),
+    ("Go 300, Rot 90", False),  # turning
+    ("Go 300, Rot 90, Go 50", False),  # not yet settled along the new hallway
+    ("Go 300, Rot 90, Go 150", True),
+])
+def test_attempts_wait_until_the_follower_has_settled_after_a_turn(record: str,
+                                                                   settled: bool) -> None:
+    b = IslandBuilder(BuilderConfig())
+    b.set_strategy(ControlStrategy.parse(record))
+    assert b._follower_settled() is settled
+    off = IslandBuilder(BuilderConfig(settled_go_m=0.0))
+    off.set_strategy(ControlStrategy.parse(record))
+    assert off._follower_settled()

@@ -334,6 +334,14 @@ class BuilderConfig:
             "the next one [m]"
         },
     )
+    settled_go_m: float = field(
+        default=1.0,
+        metadata={
+            "help": "after a turn, the hall follower must have gone straight this far before an "
+            "attempt may start, so an island's origin and theta 0 lie along a hallway, never "
+            "mid-turn or facing a wall (0 = off) [m]"
+        },
+    )
     defer_while_rising: bool = field(
         default=True,
         metadata={
@@ -436,6 +444,7 @@ class BuilderConfig:
             "bound_floor",
             "quick_reject_fraction",
             "retry_distance_m",
+            "settled_go_m",
             "dismiss_fraction",
             "first_island_min_measure",
         ):
@@ -858,6 +867,18 @@ class IslandBuilder:
         t, best = normalized_measures(self.config, self._evaluate(model.segments, at))
         return t, best, model
 
+    def _follower_settled(self) -> bool:
+        """True unless the hall follower is turning or has not yet gone `settled_go_m` straight
+        since its last turn (from the strategy it reports; an empty record counts as settled)."""
+        steps = self._strategy.steps
+        if not steps or self.config.settled_go_m <= 0:
+            return True
+        last = steps[-1]
+        if last.kind is PrimitiveKind.ROT:
+            return False
+        turned_before = any(s.kind is PrimitiveKind.ROT for s in steps[:-1])
+        return not turned_before or last.metres >= self.config.settled_go_m
+
     def _maybe_attempt(self) -> None:
         eps = self.epsilon_m
         if eps <= self.config.e_min_m:
@@ -870,7 +891,7 @@ class IslandBuilder:
             if not self._try_revisit():
                 self._start_attempt(first=False)
             return
-        if self._path_m < self._retry_at_path_m:
+        if self._path_m < self._retry_at_path_m or not self._follower_settled():
             return
         assert self._odom is not None
         bound = eq3_bound(self.config, eps)
