@@ -20,21 +20,19 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-import rclpy
 from geometry_msgs.msg import Twist
 from island_msgs_py.qos import LATCHED, STREAM_QOS
-from island_msgs_py.ros_params import declare_config, ensure_ros_env
+from island_msgs_py.ros_params import declare_config, run_node
 from island_msgs_py.types import ControlStrategy, IslandTypeError
 from island_sim.conversions import (
-    NS_PER_S,
     ConversionError,
     command_to_twist,
     odometry_to_pose,
     scan_to_arrays,
+    time_to_ns,
 )
 from nav_msgs.msg import Odometry
 from rcl_interfaces.srv import SetParameters
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
@@ -97,7 +95,7 @@ class IslandBuilderNode(Node):
     def _on_scan(self, msg: LaserScan) -> None:
         try:
             ranges, angles = scan_to_arrays(msg)
-            t_ns = int(msg.header.stamp.sec) * NS_PER_S + int(msg.header.stamp.nanosec)
+            t_ns = time_to_ns(msg.header.stamp)
             self._act(self.sync.scan(t_ns, ranges, angles))
         except (ConversionError, ValueError) as exc:
             self._warn("/sonar/scan", exc)
@@ -164,20 +162,7 @@ class IslandBuilderNode(Node):
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    ensure_ros_env()
-    rclpy.init(args=args)
-    node = IslandBuilderNode()
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(IslandBuilderNode, NODE_NAME, args)
 
 
 if __name__ == "__main__":

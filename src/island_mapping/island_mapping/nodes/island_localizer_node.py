@@ -18,21 +18,19 @@ from collections import OrderedDict, deque
 from collections.abc import Sequence
 from typing import Any
 
-import rclpy
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from island_msgs_py.json_io import GraphFormatError
 from island_msgs_py.qos import STREAM_QOS
-from island_msgs_py.ros_params import declare_config, ensure_ros_env
+from island_msgs_py.ros_params import declare_config, run_node
 from island_msgs_py.types import IslandTypeError, Pose2D
 from island_sim.conversions import (
-    NS_PER_S,
     ConversionError,
     ns_to_time,
     odometry_to_pose,
     scan_to_arrays,
+    time_to_ns,
 )
 from nav_msgs.msg import Odometry
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
@@ -93,7 +91,7 @@ class IslandLocalizerNode(Node):
         except ConversionError as exc:
             self._warn("/sonar/scan", exc)
             return
-        t_ns = int(msg.header.stamp.sec) * NS_PER_S + int(msg.header.stamp.nanosec)
+        t_ns = time_to_ns(msg.header.stamp)
         self._pending.append((t_ns, ranges, angles))
         self._drain()
 
@@ -116,20 +114,7 @@ class IslandLocalizerNode(Node):
 
 
 def main(args: Sequence[str] | None = None) -> int:
-    ensure_ros_env()
-    rclpy.init(args=args)
-    node = IslandLocalizerNode()
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(IslandLocalizerNode, NODE_NAME, args)
 
 
 if __name__ == "__main__":

@@ -34,11 +34,11 @@ from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
 from island_sim.conversions import (
-    NS_PER_S,
     ConversionError,
     command_to_twist,
     odometry_to_pose,
     scan_to_arrays,
+    time_to_ns,
 )
 from island_sim.core.hall_follower import (
     HallFollower,
@@ -104,7 +104,7 @@ class HallFollowerNode(Node):
         except ConversionError as exc:
             self._warn("/sonar/scan", exc)
             return
-        t_ns = int(msg.header.stamp.sec) * NS_PER_S + int(msg.header.stamp.nanosec)
+        t_ns = time_to_ns(msg.header.stamp)
         self._pending.append((t_ns, ranges, angles))
         if len(self._pending) > self.cfg.odom_buffer:  # no odometry is arriving at all
             dropped, _, _ = self._pending.popleft()
