@@ -187,3 +187,20 @@ def test_bad_step_arguments_are_rejected() -> None:
     with pytest.raises(RobotError, match="Generator"):
         SimRobot(None, Pose2D(0, 0, 0), 3)  # type: ignore[arg-type]
     assert SimLoopConfig().steps_per_sensor_period == 5
+
+
+def test_real_time_pacer_keeps_sim_time_at_the_factor_and_never_bursts() -> None:
+    from island_sim.core.robot import RealTimePacer, RobotError
+
+    pacer = RealTimePacer(real_time_factor=2.0, dt_ns=20_000_000, max_steps=50)  # 50 Hz, 2x
+    steps = 0
+    for k in range(101):  # 1 s of wall time in 10 ms ticks
+        steps += pacer.steps_due(k * 0.01, steps)
+    assert steps == 100  # 2 s of sim time at 20 ms a step
+    # Far behind (a 10 s stall): at most max_steps now, and no catch-up burst afterwards: the
+    # pacing restarts from the stall, so the next step waits until wall time has caught up.
+    assert pacer.steps_due(11.0, steps) == 50
+    assert pacer.steps_due(11.01, steps + 50) == 0
+    assert pacer.steps_due(11.515, steps + 50) == 1
+    with pytest.raises(RobotError, match="real_time_factor"):
+        RealTimePacer(0.0, 20_000_000, 50)

@@ -244,6 +244,37 @@ class SimLoopConfig:
         return round(self.physics_rate_hz / self.sensor_rate_hz)
 
 
+class RealTimePacer:
+    """How many fixed physics steps are due at a wall-clock time for a real-time factor.
+
+    The simulation runs in fixed steps of `dt_ns` of sim time; the wall clock only decides when.
+    Steps are due so that sim time keeps `real_time_factor` times the wall time elapsed since the
+    pacing origin; at most `max_steps` at once, and a pacer that fell further behind than that
+    restarts its origin instead of catching up later (a burst would starve the subscribers).
+    """
+
+    def __init__(self, real_time_factor: float, dt_ns: int, max_steps: int) -> None:
+        if not (real_time_factor > 0 and dt_ns > 0 and max_steps > 0):
+            raise RobotError(
+                f"RealTimePacer: needs real_time_factor > 0, dt_ns > 0, max_steps > 0; got "
+                f"{real_time_factor}, {dt_ns}, {max_steps}"
+            )
+        self.real_time_factor = real_time_factor
+        self.dt_ns = dt_ns
+        self.max_steps = max_steps
+        self._origin: tuple[float, int] | None = None  # (wall time [s], step count) there
+
+    def steps_due(self, now_s: float, step_count: int) -> int:
+        """Steps to take now [-], given the wall time `now_s` [s] and the steps taken so far."""
+        if self._origin is None:
+            self._origin = (now_s, step_count)
+        t0, k0 = self._origin
+        due = k0 + int((now_s - t0) * self.real_time_factor * 1e9 / self.dt_ns) - step_count
+        if due > self.max_steps:  # fell behind: do not try to catch up later
+            self._origin = (now_s, step_count)
+        return max(0, min(due, self.max_steps))
+
+
 def arc_update(pose: FloatArray, ds_m: float, dtheta_rad: float) -> FloatArray:
     """Pose (3,) [m, m, rad] after driving the arc of length `ds_m` turning by `dtheta_rad`."""
     x, y, th = float(pose[0]), float(pose[1]), float(pose[2])

@@ -40,6 +40,7 @@ from island_sim.conversions import (
 )
 from island_sim.core.robot import (
     OdometryConfig,
+    RealTimePacer,
     RobotConfig,
     SimLoopConfig,
     SimRobot,
@@ -118,7 +119,10 @@ class OdometryNode(Node):
         self._wait_since = 0.0
         self._started = not sim.lockstep
         self._created = time.monotonic()
-        self._pace_origin: tuple[float, int] | None = None
+        self._pacer = (
+            RealTimePacer(sim.real_time_factor, self.dt_ns, _MAX_STEPS_PER_CALLBACK)
+            if sim.real_time_factor > 0 else None
+        )
         self.odom_pub = self.create_publisher(Odometry, "/odom", STREAM_QOS)
         self.truth_pub = self.create_publisher(Odometry, "/ground_truth", STREAM_QOS)
         self.clock_pub = (
@@ -193,19 +197,10 @@ class OdometryNode(Node):
             self._publish()
             if self._boundary_wait():
                 return
-        sim = self.cfg.sim
-        budget = _MAX_STEPS_PER_CALLBACK
-        if sim.real_time_factor > 0:
-            now = time.monotonic()
-            if self._pace_origin is None:
-                self._pace_origin = (now, self.step_count)
-            t0, k0 = self._pace_origin
-            due = k0 + int((now - t0) * sim.real_time_factor * 1e9 / self.dt_ns) - self.step_count
-            if due > _MAX_STEPS_PER_CALLBACK:  # fell behind: do not try to catch up later
-                self._pace_origin = (now, self.step_count)
-            budget = max(0, min(due, _MAX_STEPS_PER_CALLBACK))
+        if self._pacer is not None:
+            budget = self._pacer.steps_due(time.monotonic(), self.step_count)
         else:
-            budget = min(budget, self.steps_per_period)
+            budget = min(_MAX_STEPS_PER_CALLBACK, self.steps_per_period)
         for _ in range(budget):
             if self.finished:
                 self.timer.cancel()
