@@ -12,12 +12,14 @@ from island_sim.conversions import (
     arrays_to_scan,
     clock_msg,
     command_to_twist,
+    command_to_twist_stamped,
     ns_to_time,
     odometry_to_pose,
     pose_to_odometry,
     range_msg,
     scan_to_arrays,
     time_to_ns,
+    twist_stamped_to_command,
     twist_to_command,
 )
 from rclpy.serialization import deserialize_message, serialize_message
@@ -97,3 +99,14 @@ def test_twist_is_validated() -> None:
         twist_to_command(command_to_twist(float("nan"), 0.0))
     with pytest.raises(ConversionError, match=r"angular\.z"):
         twist_to_command(command_to_twist(0.0, float("-inf")))
+
+
+def test_twist_stamped_round_trip_keeps_the_answered_stamp() -> None:
+    msg = command_to_twist_stamped(0.25, 0.5, 12_300_000_000)
+    assert msg.header.frame_id == "base_link"
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (12, 300_000_000)
+    assert twist_stamped_to_command(msg) == pytest.approx((0.25, 0.5, 12_300_000_000))
+    with pytest.raises(ConversionError, match=r"angular\.z"):
+        twist_stamped_to_command(command_to_twist_stamped(0.0, float("nan"), 0))
+    with pytest.raises(ConversionError, match="stamp"):
+        command_to_twist_stamped(0.0, 0.0, -1)

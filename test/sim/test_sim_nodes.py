@@ -13,9 +13,14 @@ import numpy as np
 import pytest
 import rclpy
 import yaml
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import TwistStamped
 from island_msgs_py.types import ControlStrategy, Pose2D
-from island_sim.conversions import command_to_twist, ns_to_time, pose_to_odometry
+from island_sim.conversions import (
+    command_to_twist_stamped,
+    ns_to_time,
+    pose_to_odometry,
+    time_to_ns,
+)
 from island_sim.core.world import load_world
 from island_sim.nodes.hall_follower_node import LATCHED, HallFollowerNode
 from island_sim.nodes.odometry_node import OdometryNode
@@ -190,7 +195,7 @@ def test_bad_messages_are_counted_and_nodes_keep_running(ros_context: Any) -> No
     pub_node = Node("bad_publisher", context=ros_context)
     sim.extra.append(pub_node)
     sim.executor.add_node(pub_node)
-    cmd = pub_node.create_publisher(Twist, "/cmd_vel", QOS)
+    cmd = pub_node.create_publisher(TwistStamped, "/cmd_vel", QOS)
     scan = pub_node.create_publisher(LaserScan, "/sonar/scan", QOS)
     truth = pub_node.create_publisher(Odometry, "/ground_truth", QOS)
     try:
@@ -199,7 +204,7 @@ def test_bad_messages_are_counted_and_nodes_keep_running(ros_context: Any) -> No
                               > 0, 5.0)
         before = sim.odo.cmd_count
         for v, w in ((math.nan, 0.0), (0.1, math.inf)):
-            cmd.publish(command_to_twist(v, w))
+            cmd.publish(command_to_twist_stamped(v, w, 0))
         scan.publish(LaserScan())  # no ranges
         bad_truth = pose_to_odometry(Pose2D(1.0, 1.0, 0.0), None, 0, "map")
         bad_truth.pose.pose.orientation.w = math.nan
@@ -215,6 +220,48 @@ def test_bad_messages_are_counted_and_nodes_keep_running(ros_context: Any) -> No
         assert sim.spin_until(lambda: sim.odo.cmd_count > before + 5, 10.0)
         assert sim.odo.sim_time_ns > t_before
         assert math.isfinite(sim.odo.robot.true_pose.x)
+    finally:
+        sim.close()
+
+
+def test_lockstep_waits_by_stamp_when_two_controllers_answer_one_scan(ros_context: Any) -> None:
+    """At a hand-over the builder and the hall follower both answer one scan. The robot must
+    still wait at every later boundary for a command answering that boundary's scan: were extra
+    commands counted toward later periods, the robot would run ahead and every command would
+    act on an old scan (the follower then weaves: found in paper_fig4 runs)."""
+    sim = make_sim(ros_context, 3, [_p("sim.lockstep", True)])
+    probe = Node("second_controller", context=ros_context)
+    sim.extra.append(probe)
+    sim.executor.add_node(probe)
+    cmd = probe.create_publisher(TwistStamped, "/cmd_vel", QOS)
+    newest_cmd_ns = [-1]
+    duplicates = [0]
+
+    def on_scan(msg: LaserScan) -> None:
+        if duplicates[0] < 20:  # answer the same scan as the follower does
+            duplicates[0] += 1
+            cmd.publish(command_to_twist_stamped(0.0, 0.0, time_to_ns(msg.header.stamp)))
+
+    def on_cmd(msg: TwistStamped) -> None:
+        newest_cmd_ns[0] = max(newest_cmd_ns[0], time_to_ns(msg.header.stamp))
+
+    probe.create_subscription(LaserScan, "/sonar/scan", on_scan, QOS)
+    probe.create_subscription(TwistStamped, "/cmd_vel", on_cmd, QOS)
+    period_ns = 10**8  # 10 Hz sonar
+    worst = [0]
+
+    def check() -> None:
+        if duplicates[0] >= 20 and newest_cmd_ns[0] >= 0:
+            worst[0] = max(worst[0], sim.odo.sim_time_ns - newest_cmd_ns[0])
+
+    try:
+        assert sim.spin_until(lambda: duplicates[0] >= 20, 30.0)
+        t_dup = sim.odo.sim_time_ns
+        assert sim.spin_until(lambda: sim.odo.sim_time_ns > t_dup + 10 * 10**9, 60.0, each=check)
+        # never more than one sensor period ahead of the newest command (the old count-based
+        # lockstep ran up to 20 periods ahead here)
+        assert 0 < worst[0] <= period_ns, worst[0]
+        assert sim.odo.lockstep_timeouts == 0
     finally:
         sim.close()
 

@@ -1,4 +1,4 @@
-"""Simulator messages <-> core values: LaserScan, Odometry, Twist, Clock and stamps.
+"""Simulator messages <-> core values: LaserScan, Odometry, TwistStamped, Clock and stamps.
 
 Stamps are carried as integer nanoseconds inside the simulator so that pairing messages by
 stamp is exact (sim time advances in whole physics steps).
@@ -11,7 +11,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Twist, TwistStamped
 from island_msgs_py.conversions import quaternion_to_yaw
 from island_msgs_py.types import FloatArray, IslandTypeError, Pose2D
 from nav_msgs.msg import Odometry
@@ -191,3 +191,20 @@ def command_to_twist(v_mps: float, w_radps: float) -> Twist:
     msg.linear.x = float(v_mps)
     msg.angular.z = float(w_radps)
     return msg
+
+
+def command_to_twist_stamped(
+    v_mps: float, w_radps: float, stamp_ns: int, frame_id: str = "base_link"
+) -> TwistStamped:
+    """The /cmd_vel message: TwistStamped whose stamp is the sensor stamp [ns] it answers."""
+    msg = TwistStamped()
+    msg.header.stamp = ns_to_time(stamp_ns)
+    msg.header.frame_id = frame_id
+    msg.twist = command_to_twist(v_mps, w_radps)
+    return msg
+
+
+def twist_stamped_to_command(msg: TwistStamped) -> tuple[float, float, int]:
+    """(v [m/s], w [rad/s], stamp [ns]) of a TwistStamped; ConversionError if not finite."""
+    v, w = twist_to_command(msg.twist)
+    return v, w, time_to_ns(msg.header.stamp)

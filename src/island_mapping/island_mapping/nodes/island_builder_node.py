@@ -5,7 +5,8 @@ Subscribes  /odom                    nav_msgs/Odometry (pose + covariance: epsil
             /sonar/scan              sensor_msgs/LaserScan
             /hall_follower/strategy  std_msgs/String (latched), the executed strategy
             /ground_truth            nav_msgs/Odometry, only to stamp islands' origin_truth
-Publishes   /cmd_vel                 geometry_msgs/Twist, one per scan while the builder drives
+Publishes   /cmd_vel                 geometry_msgs/TwistStamped (the scan's stamp), one per scan
+                                     while the builder drives
             /island_builder/events   std_msgs/String, one JSON object per builder event
 Calls       /hall_follower/enable (SetBool), /hall_follower/reset (Trigger),
             /topo_graph/add (rcl_interfaces/SetParameters: `island` and `edge` JSON strings)
@@ -20,13 +21,13 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import TwistStamped
 from island_msgs_py.qos import LATCHED, STREAM_QOS
 from island_msgs_py.ros_params import declare_config, run_node
 from island_msgs_py.types import ControlStrategy, IslandTypeError
 from island_sim.conversions import (
     ConversionError,
-    command_to_twist,
+    command_to_twist_stamped,
     odometry_to_pose,
     scan_to_arrays,
     time_to_ns,
@@ -56,7 +57,7 @@ class IslandBuilderNode(Node):
         self.follower_enabled = True  # confirmed state of the hall follower
         self._enable_pending: bool | None = None
         self.sync = core.StampSync(self.builder, ODOM_BUFFER)
-        self.cmd_pub = self.create_publisher(Twist, "/cmd_vel", STREAM_QOS)
+        self.cmd_pub = self.create_publisher(TwistStamped, "/cmd_vel", STREAM_QOS)
         self.event_pub = self.create_publisher(String, "/island_builder/events", STREAM_QOS)
         self.create_subscription(Odometry, "/odom", self._on_odom, STREAM_QOS)
         self.create_subscription(Odometry, "/ground_truth", self._on_truth, STREAM_QOS)
@@ -102,15 +103,15 @@ class IslandBuilderNode(Node):
 
     # --- one decision per scan ----------------------------------------------------------------
     def _act(self, commands: list[tuple[int, core.BuilderCommand]]) -> None:
-        for _, cmd in commands:
+        for t_ns, cmd in commands:
             for e in cmd.events:
                 self._handle_event(e)
             if cmd.mode is CommandMode.DRIVE:
                 self._set_follower(False)
-                self.cmd_pub.publish(command_to_twist(cmd.v_mps, cmd.w_radps))
+                self.cmd_pub.publish(command_to_twist_stamped(cmd.v_mps, cmd.w_radps, t_ns))
             else:
                 if not self.follower_enabled:  # until it confirms, keep the lockstep fed
-                    self.cmd_pub.publish(command_to_twist(0.0, 0.0))
+                    self.cmd_pub.publish(command_to_twist_stamped(0.0, 0.0, t_ns))
                 if self._enable_pending is None and not self.follower_enabled:
                     self._set_follower(True)
 

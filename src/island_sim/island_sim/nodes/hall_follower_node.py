@@ -2,8 +2,9 @@
 
 Subscribes  /sonar/scan               sensor_msgs/LaserScan
             /odom                     nav_msgs/Odometry
-Publishes   /cmd_vel                  geometry_msgs/Twist, exactly one per scan processed (none
-                                      while paused, so another node can drive)
+Publishes   /cmd_vel                  geometry_msgs/TwistStamped, exactly one per scan processed,
+                                      stamped with the scan's stamp (none while paused, so
+                                      another node can drive)
             /hall_follower/strategy   std_msgs/String, latched: the executed control strategy in
                                       the paper's Table 1 form `Go 125, Rot 270, Go 652`
 Services    /hall_follower/reset      std_srvs/Trigger: forget the strategy (restart the record)
@@ -23,7 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import TwistStamped
 from island_msgs_py.qos import LATCHED, STREAM_QOS
 from island_msgs_py.ros_params import declare_config, run_node
 from island_msgs_py.types import FloatArray, Pose2D
@@ -35,7 +36,7 @@ from std_srvs.srv import SetBool, Trigger
 
 from island_sim.conversions import (
     ConversionError,
-    command_to_twist,
+    command_to_twist_stamped,
     odometry_to_pose,
     scan_to_arrays,
     time_to_ns,
@@ -73,7 +74,7 @@ class HallFollowerNode(Node):
         self._odom: OrderedDict[int, Pose2D] = OrderedDict()
         self._pending: deque[tuple[int, FloatArray, FloatArray]] = deque()
         self._last_strategy: str | None = None
-        self.cmd_pub = self.create_publisher(Twist, "/cmd_vel", STREAM_QOS)
+        self.cmd_pub = self.create_publisher(TwistStamped, "/cmd_vel", STREAM_QOS)
         self.strategy_pub = self.create_publisher(String, "/hall_follower/strategy", LATCHED)
         self.create_subscription(LaserScan, "/sonar/scan", self._on_scan, STREAM_QOS)
         self.create_subscription(Odometry, "/odom", self._on_odom, STREAM_QOS)
@@ -136,7 +137,7 @@ class HallFollowerNode(Node):
             return
         self.scans_processed += 1
         if self.follower.enabled:
-            self.cmd_pub.publish(command_to_twist(v, w))
+            self.cmd_pub.publish(command_to_twist_stamped(v, w, t_ns))
         self._publish_strategy()
 
     # --- services ------------------------------------------------------------------------------

@@ -1,6 +1,9 @@
 """odometry_node: the simulated robot. It owns sim time and steps physics at a fixed dt.
 
-Subscribes  /cmd_vel        geometry_msgs/Twist (NaN/inf ignored with a throttled warning, counted)
+Subscribes  /cmd_vel        geometry_msgs/TwistStamped, stamped with the sensor stamp it answers
+                            (as Jazzy's diff_drive_controller; NaN/inf ignored with a throttled
+                            warning, counted; a command older than one already applied is stale
+                            and ignored; stamp 0 = "now", for hand-typed commands)
 Publishes   /odom           nav_msgs/Odometry  odom -> base_link, drifting pose + its covariance
             /ground_truth   nav_msgs/Odometry  map -> base_link, the true pose (evaluation only)
             /clock          rosgraph_msgs/Clock when sim.own_clock
@@ -8,11 +11,14 @@ Publishes   /odom           nav_msgs/Odometry  odom -> base_link, drifting pose 
 Pacing: `sim.real_time_factor` simulated seconds per wall second, or 0 = as fast as possible;
 the wall clock only decides WHEN to step, every step is one fixed `1 / sim.physics_rate_hz`.
 Lockstep (`sim.lockstep`): at every sensor period boundary, after publishing that instant, the
-robot waits until it has received that period's /cmd_vel (counted) before stepping on, so a
-seed gives one trajectory regardless of DDS timing; after `sim.lockstep_timeout_s` of wall time
-without it, it logs and steps on with the last command (and counts that period as answered).
-A paused hall follower publishes nothing, so in lockstep whoever drives the robot meanwhile
-must publish one /cmd_vel per sensor period, or each period waits for the timeout.
+robot waits until it has received a /cmd_vel stamped with that instant (or later) before stepping
+on, so controllers always act on the newest scan whatever the DDS timing; after
+`sim.lockstep_timeout_s` of wall time without one, it logs and steps on with the last command.
+Waiting by stamp, not by counting messages: when two controllers answer one scan (the hall
+follower and the island builder at a hand-over) a count would run ahead for good and every later
+command would act a period late; a stamp cannot. A paused hall follower publishes nothing, so in
+lockstep whoever drives the robot meanwhile must answer every scan, or each period waits for the
+timeout.
 """
 
 from __future__ import annotations
@@ -24,7 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import TwistStamped
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import declare_config, run_node
 from island_msgs_py.types import Pose2D
@@ -36,7 +42,7 @@ from island_sim.conversions import (
     NS_PER_S,
     ConversionError,
     fill_odometry,
-    twist_to_command,
+    twist_stamped_to_command,
 )
 from island_sim.core.robot import (
     OdometryConfig,
@@ -115,7 +121,9 @@ class OdometryNode(Node):
         self.bad_cmd_count = 0
         self.lockstep_timeouts = 0
         self._last_cmd_ns = 0
-        self._waiting_for: int | None = None  # lockstep: cmd_count needed to step on
+        self.stale_cmd_count = 0
+        self._answered_ns = -1  # stamp of the newest command applied [ns]
+        self._waiting_for: int | None = None  # lockstep: the stamp [ns] a command must answer
         self._wait_since = 0.0
         self._started = not sim.lockstep
         self._created = time.monotonic()
@@ -128,7 +136,7 @@ class OdometryNode(Node):
         self.clock_pub = (
             self.create_publisher(Clock, "/clock", STREAM_QOS) if sim.own_clock else None
         )
-        self.create_subscription(Twist, "/cmd_vel", self._on_cmd, STREAM_QOS)
+        self.create_subscription(TwistStamped, "/cmd_vel", self._on_cmd, STREAM_QOS)
         period = _PACING_PERIOD_S if sim.real_time_factor > 0 else 0.0
         self.timer = self.create_timer(period, self._on_timer)
         self.create_timer(0.05, self._check_lockstep_timeout)
@@ -139,17 +147,24 @@ class OdometryNode(Node):
         )
 
     # --- inputs --------------------------------------------------------------------------------
-    def _on_cmd(self, msg: Twist) -> None:
+    def _on_cmd(self, msg: TwistStamped) -> None:
         try:
-            self.cmd = twist_to_command(msg)
+            v, w, stamp_ns = twist_stamped_to_command(msg)
         except ConversionError as exc:
             self.bad_cmd_count += 1
             self.get_logger().warn(f"ignored bad /cmd_vel ({self.bad_cmd_count} so far): {exc}",
                                    throttle_duration_sec=WARN_THROTTLE_S)
             return
+        if stamp_ns == 0:  # unstamped (typed by hand): it answers the present instant
+            stamp_ns = self.sim_time_ns
+        if stamp_ns < self._answered_ns:
+            self.stale_cmd_count += 1  # a newer scan was already answered
+            return
+        self.cmd = (v, w)
+        self._answered_ns = stamp_ns
         self.cmd_count += 1
         self._last_cmd_ns = self.sim_time_ns
-        if self._waiting_for is not None and self.cmd_count >= self._waiting_for:
+        if self._waiting_for is not None and stamp_ns >= self._waiting_for:
             self._waiting_for = None
             if self.cfg.sim.real_time_factor > 0:
                 self.timer.reset()
@@ -217,10 +232,9 @@ class OdometryNode(Node):
         """At a sensor boundary in lockstep, wait for that period's command; True if waiting."""
         if not self.cfg.sim.lockstep or self.step_count % self.steps_per_period != 0:
             return False
-        needed = self.step_count // self.steps_per_period + 1
-        if self.cmd_count >= needed:
+        if self._answered_ns >= self.sim_time_ns:
             return False
-        self._waiting_for = needed
+        self._waiting_for = self.sim_time_ns
         self._wait_since = time.monotonic()
         self.timer.cancel()
         return True
@@ -231,12 +245,12 @@ class OdometryNode(Node):
         if time.monotonic() - self._wait_since > self.cfg.sim.lockstep_timeout_s:
             self.lockstep_timeouts += 1
             self.get_logger().warn(
-                f"lockstep: no /cmd_vel #{self._waiting_for} within "
+                f"lockstep: no /cmd_vel for the scan at {self._waiting_for} ns within "
                 f"{self.cfg.sim.lockstep_timeout_s:g} s wall; stepping on with the last command "
                 f"({self.lockstep_timeouts} timeouts)",
                 throttle_duration_sec=WARN_THROTTLE_S,
             )
-            self.cmd_count = self._waiting_for  # resynchronize the count with the periods
+            self._answered_ns = self._waiting_for  # that period counts as answered
             self._waiting_for = None
             self.timer.reset()
 
