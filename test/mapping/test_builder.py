@@ -28,6 +28,7 @@ from island_mapping.core.builder import (
     event_to_dict,
     normalized_measures,
 )
+from island_mapping.core.graph import strategy_displacement
 from island_msgs_py.types import (
     ControlStrategy,
     Edge,
@@ -36,6 +37,7 @@ from island_msgs_py.types import (
     LineModel,
     ModelType,
     Pose2D,
+    wrap_angle,
 )
 from island_sim.core.robot import OdometryConfig, SimRobot
 from island_sim.core.sonar import SonarConfig, SonarModel
@@ -617,6 +619,44 @@ def test_without_candidates_the_eq3_path_is_unchanged() -> None:
     on_before = [e for e in on if e[1] < cut]
     assert [k for k, _, _ in on_before].count(EventKind.ISLAND_ACCEPTED) >= 2
     assert on_before == [e for e in off if e[1] < cut]
+
+
+def test_a_star_at_a_known_island_becomes_a_revisit_not_a_duplicate() -> None:
+    """With too little path history for the recognition while following (history_m), the robot
+    comes back to island 0 and starts a star; the star's own points are matched against island
+    0, so no third island is built, and the edge's last steps drive from the star's anchor (where
+    the follower's record ended), not from the heading of the star's last leg."""
+
+    def run(at_star: bool) -> Run:
+        cfg = BuilderConfig(revisit=RevisitConfig(history_m=0.1, at_star=at_star))
+        return run_there_and_back(IslandBuilder(cfg), 200.0)
+
+    without = run(at_star=False)
+    assert len(without.builder.islands) == 3  # the duplicate this prevents
+    with_star = run(at_star=True)
+    b = with_star.builder
+    assert len(b.islands) == 2, kinds(with_star.events)
+    rev = [e for e in with_star.events if e.kind is EventKind.ISLAND_REVISITED]
+    assert len(rev) == 1 and rev[0].revisited_island_id == 0
+    k = with_star.events.index(rev[0])
+    assert with_star.events[k - 1].kind is EventKind.ATTEMPT_STARTED or len(rev[0].legs_m) >= 2
+    assert len(rev[0].legs_m) >= 2  # it came from a star
+    start = next(e for e in reversed(with_star.events[:k])
+                 if e.kind is EventKind.ATTEMPT_STARTED)
+    island0 = b.islands[0]
+    assert island0.origin_truth is not None and start.anchor_odom is not None
+    anchor_in_0 = start.anchor_odom.relative_to(island0.origin_truth)  # exact odometry
+    edge = rev[0].edge
+    assert edge is not None and (edge.source, edge.target) == (1, 0)
+    assert str(edge.strategy).startswith("Go 760")
+    drive = ControlStrategy(edge.strategy.steps[1:])
+    arrive = anchor_in_0.compose(strategy_displacement(drive))
+    assert math.hypot(arrive.x, arrive.y) < 0.3, (str(drive), anchor_in_0)
+    assert abs(math.degrees(wrap_angle(arrive.theta))) < 5.0, (str(drive), anchor_in_0)
+    back = next(e for e in with_star.events[k:] if e.kind is EventKind.HANDED_BACK)
+    rel = back.odom_pose.relative_to(island0.origin_truth)
+    assert back.accepted_island_id == 0 and math.hypot(rel.x, rel.y) < 0.1
+    assert with_star.robot.collisions == 0
 
 
 def test_bad_revisit_config_names_the_field() -> None:

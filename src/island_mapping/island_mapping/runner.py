@@ -91,6 +91,8 @@ class RunRecord:
     collisions: int
     lockstep_timeouts: int
     bag_dir: Path | None
+    # Why the builder refused revisit hypotheses (diagnostics): reason -> count.
+    revisit_refusals: dict[str, int] = field(default_factory=dict)
 
     @property
     def real_time_factor(self) -> float:
@@ -212,6 +214,7 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
             wall_seconds=wall,
             collisions=int(odo.robot.collisions),
             lockstep_timeouts=int(odo.lockstep_timeouts),
+            revisit_refusals=dict(builder.builder.revisit_refusals),
             bag_dir=recorder.path if recorder is not None else None,
         )
     finally:

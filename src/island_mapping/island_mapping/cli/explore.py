@@ -155,6 +155,7 @@ def run(args: argparse.Namespace) -> int:
         "edges": len(graph.edges()),
         "collisions": rec.collisions,
         "lockstep_timeouts": rec.lockstep_timeouts,
+        "revisit_refusals": rec.revisit_refusals,
         "island_origins_truth": {str(k): pose_to_dict(v) for k, v in origins.items()},
         "island_places": {
             str(k): classify_place(world.segments, v.x, v.y).value for k, v in origins.items()

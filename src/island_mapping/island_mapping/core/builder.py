@@ -240,6 +240,50 @@ class RevisitConfig:
             "it (a loop back to it; just after it, driving back is no use) [m]"
         },
     )
+    at_star: bool = field(
+        default=True,
+        metadata={
+            "help": "before a star that passed eq. 3 becomes a new island, match its points "
+            "(a full circle at the anchor and four legs: far richer than the points seen "
+            "while following) against the known islands nearby; a match is a revisit [bool]"
+        },
+    )
+    star_search_sigmas: float = field(
+        default=2.5,
+        metadata={
+            "help": "search_sigmas for the star's points: a second lap's odometric estimate of "
+            "an island was found 1.5 sigma off (paper_fig4), and the star's fit can afford "
+            "a wide search [-]"
+        },
+    )
+    star_search_max_m: float = field(
+        default=6.0,
+        metadata={
+            "help": "the star's search radius is clipped to this (not refused: its points "
+            "pin a junction down, the ambiguity and inlier tests guard look-alikes) [m]"
+        },
+    )
+    star_search_max_deg: float = field(
+        default=45.0, metadata={"help": "and its heading search to this [deg]"}
+    )
+    star_search_cells: int = field(
+        default=10,
+        metadata={
+            "help": "the star's guess grid has at least radius / this spacing, so a wide "
+            "search stays a few thousand guesses (localization refines them) [-]"
+        },
+    )
+    star_max_points: int = field(
+        default=300, metadata={"help": "the star's points are thinned evenly to this many [-]"}
+    )
+    strategy_min_go_m: float = field(
+        default=0.3,
+        metadata={
+            "help": "an edge's drive onto a recognised origin nearer than this is only the final "
+            "turn (the arrival's localization takes up the rest; a turn-around to go 10 cm "
+            "and a turn back made edges fragile) [m]"
+        },
+    )
     dock_tol_m: float = field(
         default=0.05, metadata={"help": "docking at the origin ends within this distance [m]"}
     )
@@ -269,6 +313,10 @@ class RevisitConfig:
             "max_dock_m",
             "dock_tol_m",
             "dock_tol_deg",
+            "strategy_min_go_m",
+            "star_search_sigmas",
+            "star_search_max_m",
+            "star_search_max_deg",
         ):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
@@ -281,7 +329,8 @@ class RevisitConfig:
                 raise BuilderError(
                     f"RevisitConfig.{name}: expected a finite number >= 0, got {v!r}"
                 )
-        for name in ("refine_guesses", "min_points", "max_points"):
+        for name in ("refine_guesses", "min_points", "max_points", "star_search_cells",
+                     "star_max_points"):
             iv = getattr(self, name)
             if iv < 1:
                 raise BuilderError(f"RevisitConfig.{name}: expected >= 1, got {iv}")
@@ -677,6 +726,8 @@ class _Attempt:
     first: bool
     points: list[FloatArray] = field(default_factory=list)  # in the origin frame [m]
     centre_points: list[FloatArray] = field(default_factory=list)  # seen from the origin [m]
+    # Echoes within revisit.max_range_m, in the origin frame, for recognising a known island [m]
+    near_points: list[FloatArray] = field(default_factory=list)
     leg: int = 0
     phase: _LegPhase = _LegPhase.TURN
     leg_length_m: float = 0.0
@@ -790,6 +841,9 @@ class IslandBuilder:
             rel = self._odom.relative_to(att.anchor)
             if math.hypot(rel.x, rel.y) <= self.config.centre_radius_m:
                 att.centre_points.append(local)
+            near = r <= self.config.revisit.max_range_m  # far sonar echoes are wide cones
+            att.near_points.append(_to_frame(_scan_points(r[near], a[near], self._odom),
+                                             att.anchor))
         if self._state is _State.DOCKING and self._dock is not None:
             if self._dock.phase is _DockPhase.LOOK:
                 self._dock.points.append(pts)
@@ -1053,6 +1107,15 @@ class IslandBuilder:
         if att.first and att.best <= self.config.first_island_min_measure and att.bound > 0:
             self._dismiss(partial=False)
             return
+        if not att.first:
+            rec = self._recognize_star()
+            if rec is not None:  # the star is at a known island: a revisit, not a new one
+                assert self._odom is not None
+                att.outcome = EventKind.ISLAND_REVISITED
+                self._attempt, self._star_rel = None, None
+                end = rec.pose.compose(self._odom.relative_to(att.anchor).inverse())
+                self._revisit(rec, legs_m=tuple(att.legs_done), strategy_end=end)
+                return
         pts = np.concatenate(att.points, axis=0) if att.points else np.zeros((0, 2))
         model = self._fit(pts) if pts.shape[0] >= 2 else LineModel()
         if self.config.verify_localization and not att.first and not self._verify(model):
@@ -1146,6 +1209,13 @@ class IslandBuilder:
             keep = np.linspace(0, pts_odom.shape[0] - 1, rc.max_points).round().astype(int)
             pts_odom = pts_odom[keep]
         pts = _to_frame(pts_odom, self._odom)
+        return self._recognize_points(pts, self._odom, star=False)
+
+    def _recognize_points(self, pts: FloatArray, at: Pose2D, star: bool) -> Recognition | None:
+        """The search of `recognize` for robot-frame points `pts` [m] seen from odometric pose
+        `at`; the recognition's pose is `at` in the island frame. star=True: the points of a
+        star, whose search radius is clipped to star_search_max_m instead of refused."""
+        rc = self.config.revisit
         islands = {i.id: i for i in self.islands}
         best: Recognition | None = None
         last = self._last_island
@@ -1157,28 +1227,42 @@ class IslandBuilder:
             if last is not None and iid == last.id and just_left:
                 continue
             origin, sig_m, sig_th = min(self._estimates(iid), key=lambda e: e[1])
-            radius = max(rc.search_sigmas * sig_m, rc.search_min_m)
-            est = self._odom.relative_to(origin)  # the robot in the island frame, by odometry
+            sigmas = rc.star_search_sigmas if star else rc.search_sigmas
+            radius = max(sigmas * sig_m, rc.search_min_m)
+            max_dth = sigmas * sig_th
+            step = rc.search_step_m
+            if star:
+                radius = min(radius, rc.star_search_max_m)
+                max_dth = min(max_dth, math.radians(rc.star_search_max_deg))
+                step = max(step, radius / rc.star_search_cells)
+            est = at.relative_to(origin)  # the robot in the island frame, by odometry
             if math.hypot(est.x, est.y) > radius + rc.max_dock_m:
                 continue
-            max_dth = rc.search_sigmas * sig_th
-            if radius > rc.search_max_m or max_dth > math.radians(rc.search_max_deg):
+            if not star and (
+                radius > rc.search_max_m or max_dth > math.radians(rc.search_max_deg)
+            ):
                 # The search could not cover where the island may be: a match inside it
                 # could be a look-alike place (doors repeat along corridors).
                 self._refuse("drift_too_large")
                 continue
-            found = self._search_island(island, pts, est, radius, max_dth)
+            found = self._search_island(island, pts, est, radius, max_dth, step)
             if found is not None and (best is None or found.residual_m < best.residual_m):
                 best = found
         return best
 
     def _search_island(
-        self, island: Island, pts: FloatArray, est: Pose2D, radius_m: float, max_dth_rad: float
+        self,
+        island: Island,
+        pts: FloatArray,
+        est: Pose2D,
+        radius_m: float,
+        max_dth_rad: float,
+        step_m: float,
     ) -> Recognition | None:
         rc = self.config.revisit
         segs = island.model.segments
-        n = math.floor(radius_m / rc.search_step_m + 1e-9)
-        ticks = np.arange(-n, n + 1) * rc.search_step_m
+        n = math.floor(radius_m / step_m + 1e-9)
+        ticks = np.arange(-n, n + 1) * step_m
         gx, gy = np.meshgrid(ticks, ticks)
         inside = np.hypot(gx, gy) <= radius_m + 1e-9
         offs = np.stack([gx[inside], gy[inside]], axis=1)
@@ -1201,7 +1285,7 @@ class IslandBuilder:
         guesses.sort(key=lambda g: -g[0])
         chosen: list[Pose2D] = []
         for _, g in guesses:  # the best distinct guesses
-            if all(math.hypot(g.x - c.x, g.y - c.y) > 2 * rc.search_step_m for c in chosen):
+            if all(math.hypot(g.x - c.x, g.y - c.y) > 2 * step_m for c in chosen):
                 chosen.append(g)
             if len(chosen) >= rc.refine_guesses:
                 break
@@ -1292,13 +1376,47 @@ class IslandBuilder:
         rec = self.recognize()
         if rec is None:
             return False
+        self._revisit(rec)
+        return True
+
+    def _recognize_star(self) -> Recognition | None:
+        """Match the points of the current star against the known islands near its anchor;
+        the recognition's pose is the robot's (now) in the island frame."""
+        att, rc = self._attempt, self.config.revisit
+        assert att is not None and self._odom is not None
+        if not (rc.enabled and rc.at_star) or not self._known or not att.near_points:
+            return None
+        pts = np.concatenate(att.near_points, axis=0)  # the anchor's frame
+        if pts.shape[0] < rc.min_points:
+            return None
+        if pts.shape[0] > rc.star_max_points:
+            keep = np.linspace(0, pts.shape[0] - 1, rc.star_max_points).round().astype(int)
+            pts = pts[keep]
+        rec = self._recognize_points(pts, att.anchor, star=True)
+        if rec is None:
+            return None
+        now = rec.pose.compose(self._odom.relative_to(att.anchor))
+        return Recognition(rec.island_id, now, rec.residual_m, rec.inlier_fraction)
+
+    def _revisit(
+        self,
+        rec: Recognition,
+        legs_m: tuple[tuple[float, float], ...] = (),
+        strategy_end: Pose2D | None = None,
+    ) -> None:
+        """Link the previous island to the recognised one and dock onto its origin.
+
+        strategy_end: where the follower's strategy ended, in the island frame (default: the
+        robot now); the edge's last steps drive from there to the origin. After a star the
+        robot is back at the anchor but faces its last leg, so that must be the anchor pose.
+        """
         assert self._odom is not None
         island = next(i for i in self.islands if i.id == rec.island_id)
-        p = rec.pose
+        p = rec.pose if strategy_end is None else strategy_end
         dist = math.hypot(p.x, p.y)
         # The drive to the origin, as the follower would record it: turn to it, go, turn.
         steps: list[StrategyPrimitive] = []
-        if dist > self.config.revisit.dock_tol_m:
+        if dist > self.config.revisit.strategy_min_go_m:
             to_c = wrap_angle(math.atan2(-p.y, -p.x) - p.theta)
             steps += [_rot(to_c), StrategyPrimitive(PrimitiveKind.GO, round(100 * dist))]
             steps.append(_rot(-(p.theta + to_c)))
@@ -1326,23 +1444,24 @@ class IslandBuilder:
             elif new.weight < self.edges[old].weight:
                 self.edges[old] = new
                 edge = new
+        origin_odom = self._odom.compose(rec.pose.inverse())  # the island origin, odometry
         self._emit(
             EventKind.ISLAND_REVISITED,
-            anchor_odom=self._odom.compose(p.inverse()),
+            anchor_odom=origin_odom,
             revisited_island_id=island.id,
-            island_pose=p,
+            island_pose=rec.pose,
             residual_m=rec.residual_m,
             edge=edge,
+            legs_m=legs_m,
         )
         if prev is not None and prev.id != island.id and prev.id in self._known:
-            self._link(prev.id, island.id, self._odom.compose(p.inverse()), self.epsilon_m)
+            self._link(prev.id, island.id, origin_odom, self.epsilon_m)
         self._dock = _Dock(
             island=island,
-            target=self._odom.compose(p.inverse()),
+            target=origin_odom,
             looks_left=self.config.revisit.dock_looks,
         )
         self._state = _State.DOCKING
-        return True
 
     def _dock_step(self) -> tuple[float, float]:
         """Drive onto the recognised origin, face its heading, look around and re-localize."""
