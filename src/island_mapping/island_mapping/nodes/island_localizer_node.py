@@ -6,7 +6,7 @@ Subscribes  /island_builder/events  std_msgs/String (JSON): `island_accepted` ev
             /sonar/scan             sensor_msgs/LaserScan
 Publishes   /island_pose            geometry_msgs/PoseWithCovarianceStamped, frame_id = the
                                     island's frame (`island_<id>`), stamped with the scan time
-Each scan is paired with the odometry of the same stamp. The logic is
+Each scan is paired with the odometry of the same stamp (island_sim.core.stamps). The logic is
 island_mapping.core.navigate.IslandTracker.
 """
 
@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import sys
-from collections import OrderedDict, deque
 from collections.abc import Sequence
 from typing import Any
 
@@ -22,7 +21,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from island_msgs_py.json_io import GraphFormatError
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import declare_config, run_node
-from island_msgs_py.types import IslandTypeError, Pose2D
+from island_msgs_py.types import FloatArray, IslandTypeError
 from island_sim.conversions import (
     ConversionError,
     ns_to_time,
@@ -30,6 +29,7 @@ from island_sim.conversions import (
     scan_to_arrays,
     time_to_ns,
 )
+from island_sim.core.stamps import Paired, ScanOdomPairer
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
@@ -50,8 +50,8 @@ class IslandLocalizerNode(Node):
         self.tracker = IslandTracker(declare_config(self, "tracker", TrackerConfig()))
         self.bad_msg_count = 0
         self.published = 0
-        self._odom: OrderedDict[int, Pose2D] = OrderedDict()
-        self._pending: deque[tuple[int, Any, Any]] = deque()
+        self._pairer: ScanOdomPairer[tuple[FloatArray, FloatArray]] = ScanOdomPairer(
+            ODOM_BUFFER)
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "/island_pose", 10)
         self.create_subscription(String, "/island_builder/events", self._on_event, STREAM_QOS)
         self.create_subscription(Odometry, "/odom", self._on_odom, STREAM_QOS)
@@ -80,10 +80,7 @@ class IslandLocalizerNode(Node):
         except ConversionError as exc:
             self._warn("/odom", exc)
             return
-        self._odom[t_ns] = pose
-        while len(self._odom) > ODOM_BUFFER:
-            self._odom.popitem(last=False)
-        self._drain()
+        self._handle(self._pairer.odometry(t_ns, pose))
 
     def _on_scan(self, msg: LaserScan) -> None:
         try:
@@ -91,26 +88,19 @@ class IslandLocalizerNode(Node):
         except ConversionError as exc:
             self._warn("/sonar/scan", exc)
             return
-        t_ns = time_to_ns(msg.header.stamp)
-        self._pending.append((t_ns, ranges, angles))
-        self._drain()
+        self._handle(self._pairer.scan(time_to_ns(msg.header.stamp), (ranges, angles)))
 
-    def _drain(self) -> None:
-        newest = next(reversed(self._odom)) if self._odom else None
-        while self._pending and newest is not None and self._pending[0][0] <= newest:
-            t_ns, ranges, angles = self._pending.popleft()
-            older = [k for k in self._odom if k <= t_ns]
-            if not older:
-                continue
+    def _handle(self, paired: list[Paired[tuple[FloatArray, FloatArray]]]) -> None:
+        for p in paired:
             try:
-                fix = self.tracker.on_scan(self._odom[older[-1]], ranges, angles)
+                fix = self.tracker.on_scan(p.pose, p.payload[0], p.payload[1])
             except ValueError as exc:
                 self._warn("scan for the localizer", exc)
                 continue
             if fix is not None:
                 self.published += 1
                 self.pose_pub.publish(cv.pose2d_to_pose_with_covariance_stamped(
-                    fix.pose, fix.frame_id, fix.covariance, ns_to_time(t_ns)))
+                    fix.pose, fix.frame_id, fix.covariance, ns_to_time(p.stamp_ns)))
 
 
 def main(args: Sequence[str] | None = None) -> int:

@@ -12,13 +12,13 @@ Services    /hall_follower/reset      std_srvs/Trigger: forget the strategy (res
 
 Each scan is paired with the odometry message of the SAME stamp (the simulator publishes both
 at every sensor period), so the controller's inputs do not depend on delivery order; a scan
-whose stamp has no odometry is paired with the newest older odometry once a newer one arrives.
+whose stamp has no odometry is paired with the newest older odometry once a newer one arrives
+(`island_sim.core.stamps.ScanOdomPairer`).
 """
 
 from __future__ import annotations
 
 import sys
-from collections import OrderedDict, deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -46,6 +46,7 @@ from island_sim.core.hall_follower import (
     HallFollowerConfig,
     HallFollowerError,
 )
+from island_sim.core.stamps import Paired, ScanOdomPairer
 
 NODE_NAME = "hall_follower_node"
 WARN_THROTTLE_S = 2.0
@@ -71,8 +72,8 @@ class HallFollowerNode(Node):
         self.follower = HallFollower(self.cfg.follower, np.random.default_rng(self.cfg.seed))
         self.scans_processed = 0
         self.bad_msg_count = 0
-        self._odom: OrderedDict[int, Pose2D] = OrderedDict()
-        self._pending: deque[tuple[int, FloatArray, FloatArray]] = deque()
+        self._pairer: ScanOdomPairer[tuple[FloatArray, FloatArray]] = ScanOdomPairer(
+            self.cfg.odom_buffer)
         self._last_strategy: str | None = None
         self.cmd_pub = self.create_publisher(TwistStamped, "/cmd_vel", STREAM_QOS)
         self.strategy_pub = self.create_publisher(String, "/hall_follower/strategy", LATCHED)
@@ -94,10 +95,7 @@ class HallFollowerNode(Node):
         except ConversionError as exc:
             self._warn("/odom", exc)
             return
-        self._odom[t_ns] = pose
-        while len(self._odom) > self.cfg.odom_buffer:
-            self._odom.popitem(last=False)
-        self._drain(newest_ns=t_ns)
+        self._handle(self._pairer.odometry(t_ns, pose))
 
     def _on_scan(self, msg: LaserScan) -> None:
         try:
@@ -105,29 +103,14 @@ class HallFollowerNode(Node):
         except ConversionError as exc:
             self._warn("/sonar/scan", exc)
             return
-        t_ns = time_to_ns(msg.header.stamp)
-        self._pending.append((t_ns, ranges, angles))
-        if len(self._pending) > self.cfg.odom_buffer:  # no odometry is arriving at all
-            dropped, _, _ = self._pending.popleft()
-            self._warn("/sonar/scan", ValueError(f"no odometry for the scan at {dropped} ns"))
-        self._drain(newest_ns=next(reversed(self._odom)) if self._odom else None)
+        dropped = self._pairer.dropped_scans
+        self._handle(self._pairer.scan(time_to_ns(msg.header.stamp), (ranges, angles)))
+        if self._pairer.dropped_scans > dropped:
+            self._warn("/sonar/scan", ValueError("no odometry at or after a scan's stamp"))
 
-    def _drain(self, newest_ns: int | None) -> None:
-        """Process pending scans in order: exact-stamp odometry, or older once newer exists."""
-        while self._pending:
-            t_ns, ranges, angles = self._pending[0]
-            pose = self._odom.get(t_ns)
-            if pose is None:
-                if newest_ns is None or newest_ns <= t_ns:
-                    return  # its odometry may still come
-                older = [k for k in self._odom if k <= t_ns]
-                if not older:
-                    self._pending.popleft()
-                    self._warn("/sonar/scan", ValueError(f"no odometry at or before {t_ns} ns"))
-                    continue
-                pose = self._odom[older[-1]]
-            self._pending.popleft()
-            self._process(t_ns, ranges, angles, pose)
+    def _handle(self, paired: list[Paired[tuple[FloatArray, FloatArray]]]) -> None:
+        for p in paired:
+            self._process(p.stamp_ns, p.payload[0], p.payload[1], p.pose)
 
     def _process(self, t_ns: int, ranges: FloatArray, angles: FloatArray, pose: Pose2D) -> None:
         try:
