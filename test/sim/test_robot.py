@@ -204,3 +204,29 @@ def test_real_time_pacer_keeps_sim_time_at_the_factor_and_never_bursts() -> None
     assert pacer.steps_due(11.515, steps + 50) == 1
     with pytest.raises(RobotError, match="real_time_factor"):
         RealTimePacer(0.0, 20_000_000, 50)
+
+
+def test_command_gate_waits_by_stamp_and_duplicate_answers_do_not_run_it_ahead() -> None:
+    from island_sim.core.robot import CommandGate, RobotError
+
+    period = 100_000_000  # 10 Hz sensor boundaries [ns]
+    gate = CommandGate(lockstep=True, cmd_timeout_ns=500_000_000)
+    assert gate.current(0) == (0.0, 0.0)  # nothing taken yet
+    assert gate.must_wait(0)
+    assert gate.offer(0.2, 0.0, 0, now_ns=0)  # the answer to the scan at 0 releases the wait
+    # Two controllers answer the scan at 0.1 s (a hand-over): the second must not count for 0.2 s.
+    assert gate.must_wait(period)
+    assert gate.offer(0.3, 0.1, period, now_ns=period)
+    assert not gate.offer(0.0, 0.5, period, now_ns=period)  # same stamp: taken, no wait to end
+    assert gate.current(period) == (0.0, 0.5)
+    assert gate.must_wait(2 * period)  # still waits for an answer to the scan at 0.2 s
+    assert not gate.offer(9.0, 9.0, period - 1, now_ns=2 * period)  # older: stale, ignored
+    assert gate.stale == 1 and gate.current(2 * period) == (0.0, 0.5)
+    gate.give_up()  # the wall-clock timeout: step on, that period counts as answered
+    assert gate.waiting_for_ns is None and not gate.must_wait(2 * period)
+    assert gate.current(period + 500_000_001) == (0.0, 0.0)  # no command for too long: stop
+    free = CommandGate(lockstep=False, cmd_timeout_ns=1)
+    assert not free.must_wait(0)
+    assert not free.offer(0.1, 0.0, 0, now_ns=5) and free.answered_ns == 5  # stamp 0 = now
+    with pytest.raises(RobotError, match="cmd_timeout_ns"):
+        CommandGate(lockstep=True, cmd_timeout_ns=0)

@@ -258,9 +258,10 @@ def test_lockstep_waits_by_stamp_when_two_controllers_answer_one_scan(ros_contex
         assert sim.spin_until(lambda: duplicates[0] >= 20, 30.0)
         t_dup = sim.odo.sim_time_ns
         assert sim.spin_until(lambda: sim.odo.sim_time_ns > t_dup + 10 * 10**9, 60.0, each=check)
-        # never more than one sensor period ahead of the newest command (the old count-based
-        # lockstep ran up to 20 periods ahead here)
-        assert 0 < worst[0] <= period_ns, worst[0]
+        # never more than a sensor period ahead of the newest command, plus one period for the
+        # probe's own copy of /cmd_vel arriving after the robot's (the old count-based lockstep
+        # ran 21 periods ahead here)
+        assert 0 < worst[0] <= 2 * period_ns, worst[0]
         assert sim.odo.lockstep_timeouts == 0
     finally:
         sim.close()

@@ -56,7 +56,7 @@ def test_nodes_in_separate_processes_drive_the_robot(ros_context: Any) -> None:
     try:
         deadline = time.monotonic() + 40.0
         moved = False
-        while time.monotonic() < deadline and not moved:
+        while time.monotonic() < deadline and not (moved and odom):
             ex.spin_once(timeout_sec=0.1)
             moved = bool(strategy) and ControlStrategy.parse(strategy[-1]).length_m > 2.0
             assert all(p.poll() is None for p in procs), "a node exited early"

@@ -275,6 +275,66 @@ class RealTimePacer:
         return max(0, min(due, self.max_steps))
 
 
+class CommandGate:
+    """Which velocity command the simulated robot obeys, and in lockstep when it may step on.
+
+    Commands carry the stamp [ns] of the sensor data they answer (0 = "now", for hand-typed
+    ones). A command older than one already taken is stale and ignored. The latest taken command
+    applies until `cmd_timeout_ns` of sim time without one, then the robot stops. In lockstep, at
+    every sensor boundary the robot waits for a command answering that boundary's stamp (or a
+    later one): waiting by stamp, not by counting messages, because when two controllers answer
+    one scan (the hall follower and the island builder at a hand-over) a count runs ahead for
+    good and every later command would act a period late.
+    """
+
+    def __init__(self, lockstep: bool, cmd_timeout_ns: int) -> None:
+        if cmd_timeout_ns <= 0:
+            raise RobotError(f"CommandGate: cmd_timeout_ns must be > 0, got {cmd_timeout_ns}")
+        self.lockstep = lockstep
+        self.cmd_timeout_ns = cmd_timeout_ns
+        self.command = (0.0, 0.0)  # (v [m/s], w [rad/s]) of the latest command taken
+        self.taken = 0  # commands taken
+        self.stale = 0  # commands ignored: older than one already taken
+        self.answered_ns = -1  # stamp of the latest command taken [ns]
+        self.waiting_for_ns: int | None = None  # lockstep: the boundary stamp being waited for
+        self._taken_at_ns: int | None = None  # sim time when the latest was taken [ns]
+
+    def offer(self, v_mps: float, w_radps: float, stamp_ns: int, now_ns: int) -> bool:
+        """A command arrives at sim time `now_ns`; True if it ends the current lockstep wait."""
+        if stamp_ns == 0:
+            stamp_ns = now_ns
+        if stamp_ns < self.answered_ns:
+            self.stale += 1
+            return False
+        self.command = (v_mps, w_radps)
+        self.answered_ns = stamp_ns
+        self.taken += 1
+        self._taken_at_ns = now_ns
+        if self.waiting_for_ns is not None and stamp_ns >= self.waiting_for_ns:
+            self.waiting_for_ns = None
+            return True
+        return False
+
+    def must_wait(self, boundary_ns: int) -> bool:
+        """At a sensor boundary: must the robot wait for a command answering it?"""
+        if not self.lockstep or self.answered_ns >= boundary_ns:
+            return False
+        self.waiting_for_ns = boundary_ns
+        return True
+
+    def give_up(self) -> None:
+        """Step on without the awaited command (its period counts as answered)."""
+        if self.waiting_for_ns is not None:
+            self.answered_ns = self.waiting_for_ns
+            self.waiting_for_ns = None
+
+    def current(self, now_ns: int) -> tuple[float, float]:
+        """The command to apply at sim time `now_ns` (zero before any, or after the timeout)."""
+        if self._taken_at_ns is None or now_ns - self._taken_at_ns > self.cmd_timeout_ns:
+            return 0.0, 0.0
+        return self.command
+
+
 def arc_update(pose: FloatArray, ds_m: float, dtheta_rad: float) -> FloatArray:
     """Pose (3,) [m, m, rad] after driving the arc of length `ds_m` turning by `dtheta_rad`."""
     x, y, th = float(pose[0]), float(pose[1]), float(pose[2])

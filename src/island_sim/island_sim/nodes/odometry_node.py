@@ -16,9 +16,9 @@ on, so controllers always act on the newest scan whatever the DDS timing; after
 `sim.lockstep_timeout_s` of wall time without one, it logs and steps on with the last command.
 Waiting by stamp, not by counting messages: when two controllers answer one scan (the hall
 follower and the island builder at a hand-over) a count would run ahead for good and every later
-command would act a period late; a stamp cannot. A paused hall follower publishes nothing, so in
-lockstep whoever drives the robot meanwhile must answer every scan, or each period waits for the
-timeout.
+command would act a period late; a stamp cannot (`island_sim.core.robot.CommandGate`). A
+paused hall follower publishes nothing, so in lockstep whoever drives the robot meanwhile must
+answer every scan, or each period waits for the timeout.
 """
 
 from __future__ import annotations
@@ -45,6 +45,7 @@ from island_sim.conversions import (
     twist_stamped_to_command,
 )
 from island_sim.core.robot import (
+    CommandGate,
     OdometryConfig,
     RealTimePacer,
     RobotConfig,
@@ -116,14 +117,9 @@ class OdometryNode(Node):
         self._odom_msg = Odometry()
         self._clock_msg = Clock()
         self.step_count = 0
-        self.cmd = (0.0, 0.0)
-        self.cmd_count = 0
+        self.gate = CommandGate(sim.lockstep, round(sim.cmd_timeout_s * 1e9))
         self.bad_cmd_count = 0
         self.lockstep_timeouts = 0
-        self._last_cmd_ns = 0
-        self.stale_cmd_count = 0
-        self._answered_ns = -1  # stamp of the newest command applied [ns]
-        self._waiting_for: int | None = None  # lockstep: the stamp [ns] a command must answer
         self._wait_since = 0.0
         self._started = not sim.lockstep
         self._created = time.monotonic()
@@ -155,22 +151,12 @@ class OdometryNode(Node):
             self.get_logger().warn(f"ignored bad /cmd_vel ({self.bad_cmd_count} so far): {exc}",
                                    throttle_duration_sec=WARN_THROTTLE_S)
             return
-        if stamp_ns == 0:  # unstamped (typed by hand): it answers the present instant
-            stamp_ns = self.sim_time_ns
-        if stamp_ns < self._answered_ns:
-            self.stale_cmd_count += 1  # a newer scan was already answered
-            return
-        self.cmd = (v, w)
-        self._answered_ns = stamp_ns
-        self.cmd_count += 1
-        self._last_cmd_ns = self.sim_time_ns
-        if self._waiting_for is not None and stamp_ns >= self._waiting_for:
-            self._waiting_for = None
+        if self.gate.offer(v, w, stamp_ns, self.sim_time_ns):  # the awaited answer came
             if self.cfg.sim.real_time_factor > 0:
                 self.timer.reset()
             else:
                 self._on_timer()  # as fast as possible: step on now, saving an executor cycle
-                if self._waiting_for is None and not self.finished:
+                if self.gate.waiting_for_ns is None and not self.finished:
                     self.timer.reset()
 
     # --- stepping ------------------------------------------------------------------------------
@@ -183,11 +169,10 @@ class OdometryNode(Node):
         stop = self.cfg.sim.stop_after_s
         return stop > 0 and self.sim_time_ns >= round(stop * 1e9)
 
-    def _command(self) -> tuple[float, float]:
-        timeout_ns = round(self.cfg.sim.cmd_timeout_s * 1e9)
-        if self.cmd_count == 0 or self.sim_time_ns - self._last_cmd_ns > timeout_ns:
-            return 0.0, 0.0
-        return self.cmd
+    @property
+    def cmd_count(self) -> int:
+        """Commands taken (stale and malformed ones not counted)."""
+        return self.gate.taken
 
     def _ready_to_start(self) -> bool:
         """Lockstep starts once the controller and the sensor are connected (or after timeout)."""
@@ -202,7 +187,7 @@ class OdometryNode(Node):
         return connected or waited
 
     def _on_timer(self) -> None:
-        if self._waiting_for is not None:
+        if self.gate.waiting_for_ns is not None:
             self.timer.cancel()
             return
         if not self._started:
@@ -220,7 +205,7 @@ class OdometryNode(Node):
             if self.finished:
                 self.timer.cancel()
                 return
-            v, w = self._command()
+            v, w = self.gate.current(self.sim_time_ns)
             self.robot.step(v, w, self.dt_ns * 1e-9)
             self.step_count += 1
             if self.step_count % self.steps_per_publish == 0:
@@ -230,28 +215,26 @@ class OdometryNode(Node):
 
     def _boundary_wait(self) -> bool:
         """At a sensor boundary in lockstep, wait for that period's command; True if waiting."""
-        if not self.cfg.sim.lockstep or self.step_count % self.steps_per_period != 0:
+        if self.step_count % self.steps_per_period != 0 or not self.gate.must_wait(
+            self.sim_time_ns
+        ):
             return False
-        if self._answered_ns >= self.sim_time_ns:
-            return False
-        self._waiting_for = self.sim_time_ns
         self._wait_since = time.monotonic()
         self.timer.cancel()
         return True
 
     def _check_lockstep_timeout(self) -> None:
-        if self._waiting_for is None:
+        if self.gate.waiting_for_ns is None:
             return
         if time.monotonic() - self._wait_since > self.cfg.sim.lockstep_timeout_s:
             self.lockstep_timeouts += 1
             self.get_logger().warn(
-                f"lockstep: no /cmd_vel for the scan at {self._waiting_for} ns within "
+                f"lockstep: no /cmd_vel for the scan at {self.gate.waiting_for_ns} ns within "
                 f"{self.cfg.sim.lockstep_timeout_s:g} s wall; stepping on with the last command "
                 f"({self.lockstep_timeouts} timeouts)",
                 throttle_duration_sec=WARN_THROTTLE_S,
             )
-            self._answered_ns = self._waiting_for  # that period counts as answered
-            self._waiting_for = None
+            self.gate.give_up()
             self.timer.reset()
 
     def _publish(self) -> None:
