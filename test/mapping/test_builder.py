@@ -605,6 +605,20 @@ def test_a_known_island_whose_model_does_not_fit_is_not_recognised() -> None:
     assert any(e.anchor_odom is not None and e.anchor_odom.x > -6.0 for e in starts[2:])
 
 
+def test_a_recognition_needs_a_fit_constrained_along_every_axis() -> None:
+    """The fit that recognises island 0 in the box corridor (constraint ~0.2, the end wall pins
+    it) is refused when min_constraint asks for more: the gate that stops hallway points from
+    being recognised at an arbitrary place along a hallway (constraint 0.03-0.06 in paper_fig4's
+    false recognitions, 1.7-6.9 m off)."""
+    strict = IslandBuilder(BuilderConfig(revisit=RevisitConfig(at_star=False,
+                                                               min_constraint=0.45)))
+    run = run_there_and_back(strict, 150.0)
+    assert EventKind.ISLAND_REVISITED not in kinds(run.events)
+    assert strict.revisit_refusals.get("weak_constraint", 0) > 0, strict.revisit_refusals
+    with pytest.raises(BuilderError, match=r"RevisitConfig\.min_constraint"):
+        RevisitConfig(min_constraint=-0.1)
+
+
 def test_without_candidates_the_eq3_path_is_unchanged() -> None:
     def events(enabled: bool) -> list[tuple[EventKind, float, Pose2D]]:
         cfg = BuilderConfig(revisit=RevisitConfig(enabled=enabled))

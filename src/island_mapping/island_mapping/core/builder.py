@@ -36,6 +36,7 @@ The decisions (see docs/builder.md):
 from __future__ import annotations
 
 import bisect
+import heapq
 import math
 from collections import deque
 from collections.abc import Callable, Mapping
@@ -211,6 +212,15 @@ class RevisitConfig:
     max_residual_m: float = field(
         default=0.15, metadata={"help": "largest RMS residual of a recognition [m]"}
     )
+    min_constraint: float = field(
+        default=0.1,
+        metadata={
+            "help": "a recognition's fit must constrain the position along every axis this "
+            "much (smaller eigenvalue of the normalized normal matrix; hallway points alias "
+            "along it: paper_fig4's false recognitions, 1.7-6.9 m off, had 0.03-0.06, true "
+            "ones 0.17-0.47) [0-0.5]"
+        },
+    )
     min_inlier_fraction: float = field(
         default=0.6,
         metadata={"help": "fewest points within inlier_m of the model at the recognised pose [-]"},
@@ -259,12 +269,12 @@ class RevisitConfig:
     star_search_max_m: float = field(
         default=6.0,
         metadata={
-            "help": "the star's search radius is clipped to this (not refused: its points "
-            "pin a junction down, the ambiguity and inlier tests guard look-alikes) [m]"
+            "help": "largest position search radius of the star's points; a candidate that "
+            "would need more is not searched (search_max_m for the star) [m]"
         },
     )
     star_search_max_deg: float = field(
-        default=45.0, metadata={"help": "and its heading search to this [deg]"}
+        default=45.0, metadata={"help": "and largest heading search (search_max_deg) [deg]"}
     )
     star_search_cells: int = field(
         default=10,
@@ -323,7 +333,8 @@ class RevisitConfig:
                 raise BuilderError(
                     f"RevisitConfig.{name}: expected a finite number > 0, got {v!r}"
                 )
-        for name in ("search_max_deg", "path_clearance_m", "min_inlier_fraction", "min_loop_m"):
+        for name in ("search_max_deg", "path_clearance_m", "min_inlier_fraction", "min_loop_m",
+                     "min_constraint"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise BuilderError(
@@ -1230,19 +1241,20 @@ class IslandBuilder:
             sigmas = rc.star_search_sigmas if star else rc.search_sigmas
             radius = max(sigmas * sig_m, rc.search_min_m)
             max_dth = sigmas * sig_th
-            step = rc.search_step_m
-            if star:
-                radius = min(radius, rc.star_search_max_m)
-                max_dth = min(max_dth, math.radians(rc.star_search_max_deg))
-                step = max(step, radius / rc.star_search_cells)
+            max_m, max_deg = (
+                (rc.star_search_max_m, rc.star_search_max_deg)
+                if star
+                else (rc.search_max_m, rc.search_max_deg)
+            )
+            step = max(rc.search_step_m, radius / rc.star_search_cells) if star else (
+                rc.search_step_m)
             est = at.relative_to(origin)  # the robot in the island frame, by odometry
             if math.hypot(est.x, est.y) > radius + rc.max_dock_m:
                 continue
-            if not star and (
-                radius > rc.search_max_m or max_dth > math.radians(rc.search_max_deg)
-            ):
+            if radius > max_m or max_dth > math.radians(max_deg):
                 # The search could not cover where the island may be: a match inside it
-                # could be a look-alike place (doors repeat along corridors).
+                # could be a look-alike place (doors repeat along corridors; a star that
+                # clipped its search to 6 m took the T at (9, 22) for the one at (9, 9)).
                 self._refuse("drift_too_large")
                 continue
             found = self._search_island(island, pts, est, radius, max_dth, step)
@@ -1299,6 +1311,9 @@ class IslandBuilder:
             if res.residual_m > rc.max_residual_m:
                 self._refuse("residual")
                 continue
+            if res.constraint < rc.min_constraint:
+                self._refuse("weak_constraint")  # slides along a hallway: aliases along it
+                continue
             if math.hypot(p.x - est.x, p.y - est.y) > radius_m:
                 self._refuse("outside_search_radius")
                 continue
@@ -1337,8 +1352,8 @@ class IslandBuilder:
     def _estimates(self, iid: int) -> list[tuple[Pose2D, float, float]]:
         """Where island iid's origin may be in the odometry frame: (pose, position sigma [m],
         heading sigma [rad]), from its last known odometric pose (the odometry's drift since)
-        and, when it is linked to the last island, through that link (epsilon plus the link's
-        own error)."""
+        and, when the links measured on edges join it to the last island, through the chain of
+        links with the smallest summed sigma (epsilon plus the chain's error)."""
         assert self._odom is not None
         origin, cov0 = self._known[iid]
         grow = self._cov - cov0
@@ -1352,14 +1367,41 @@ class IslandBuilder:
         ]
         last = self._last_island
         if last is not None and last.id in self._known and last.id != iid:
-            base = self._known[last.id][0]
-            sig_rel_th = math.sqrt(max(float(self._rel.p[2, 2]), 0.0))
-            fwd, back = self._links.get((last.id, iid)), self._links.get((iid, last.id))
-            for link, inverse in ((fwd, False), (back, True)):
-                if link is not None:
-                    t = link[0].inverse() if inverse else link[0]
-                    out.append((base.compose(t), self.epsilon_m + link[1], sig_rel_th + link[2]))
+            chain = self._chain(last.id, iid)
+            if chain is not None:
+                t, sig_m, sig_th = chain
+                base = self._known[last.id][0]
+                sig_rel_th = math.sqrt(max(float(self._rel.p[2, 2]), 0.0))
+                # The robot's own heading error since the last island turns the whole chain.
+                reach = math.hypot(t.x, t.y)
+                out.append((base.compose(t), self.epsilon_m + sig_m + sig_rel_th * reach,
+                            sig_rel_th + sig_th))
         return out
+
+    def _chain(self, src: int, dst: int) -> tuple[Pose2D, float, float] | None:
+        """Island dst's origin in island src's frame through the links (either direction),
+        the chain with the smallest position sigma: (pose, sigma [m], heading sigma [rad]).
+        A link's heading error turns every later link: sigma grows by the heading sigma so far
+        times each later link's length (first order)."""
+        best = {src: 0.0}
+        heap: list[tuple[float, int, int, Pose2D, float]] = [(0.0, 0, src, Pose2D(0, 0, 0), 0.0)]
+        tie = 1
+        while heap:
+            sig, _, node, pose, sig_th = heapq.heappop(heap)
+            if node == dst:
+                return pose, sig, sig_th
+            if sig > best.get(node, math.inf):
+                continue
+            for (a, b), (t_ab, s_m, s_th) in self._links.items():
+                if node not in (a, b):
+                    continue
+                nxt, step = (b, t_ab) if a == node else (a, t_ab.inverse())
+                ns = sig + s_m + sig_th * math.hypot(step.x, step.y)
+                if ns < best.get(nxt, math.inf):
+                    best[nxt] = ns
+                    heapq.heappush(heap, (ns, tie, nxt, pose.compose(step), sig_th + s_th))
+                    tie += 1
+        return None
 
     def _refuse(self, reason: str) -> None:
         self.revisit_refusals[reason] = self.revisit_refusals.get(reason, 0) + 1
