@@ -59,6 +59,7 @@ from island_msgs_py.types import (
 )
 
 from island_mapping.core.fisher import FisherConfig
+from island_mapping.core.graph import normalize_strategy
 from island_mapping.core.lines import LineFitConfig, fit_lines, point_segment_distance
 from island_mapping.core.localize import LocalizeConfig, Solver, localize
 from island_mapping.core.measure import MeasureConfig, evaluate_models
@@ -1473,7 +1474,7 @@ class IslandBuilder:
             new = Edge(
                 source=prev.id,
                 target=island.id,
-                strategy=ControlStrategy(self._strategy.steps + tuple(steps)),
+                strategy=normalize_strategy(ControlStrategy(self._strategy.steps + tuple(steps))),
                 weight=length + eps,
                 length_m=length,
                 expected_error_m=eps,
