@@ -1226,7 +1226,8 @@ class IslandBuilder:
     def _recognize_points(self, pts: FloatArray, at: Pose2D, star: bool) -> Recognition | None:
         """The search of `recognize` for robot-frame points `pts` [m] seen from odometric pose
         `at`; the recognition's pose is `at` in the island frame. star=True: the points of a
-        star, whose search radius is clipped to star_search_max_m instead of refused."""
+        star, searched over star_search_sigmas within the star_search_max_m / _deg caps on a
+        grid of at least radius / star_search_cells."""
         rc = self.config.revisit
         islands = {i.id: i for i in self.islands}
         best: Recognition | None = None
