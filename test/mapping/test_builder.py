@@ -17,6 +17,7 @@ from island_mapping.core.builder import (
     BuilderError,
     BuilderEvent,
     CommandMode,
+    CoreMeasures,
     DismissReason,
     EventKind,
     IslandBuilder,
@@ -205,7 +206,7 @@ def test_edge_carries_the_followers_strategy_since_the_last_island() -> None:
     robot = SimRobot(world, start, rng, odometry=OdometryConfig.exact())
     sonar = SonarModel(SonarConfig(), seed=1)
     t, handed = 0.0, False
-    accepted = []
+    accepted, starts = [], []
     for _ in range(2000):
         builder.on_scan(t, sonar.scan(world, robot.true_pose, rng), sonar.angles_rad)
         cmd = builder.command(t)
@@ -214,6 +215,8 @@ def test_edge_carries_the_followers_strategy_since_the_last_island() -> None:
                 handed = True
             if ev.kind is EventKind.ISLAND_ACCEPTED:
                 accepted.append(ev)
+            if ev.kind is EventKind.ATTEMPT_STARTED:
+                starts.append(ev)
         if handed:
             builder.set_strategy(ControlStrategy.parse("Go 1150"))
         v, w = (0.4, 0.0) if cmd.mode is CommandMode.FOLLOW else (cmd.v_mps, cmd.w_radps)
@@ -228,7 +231,16 @@ def test_edge_carries_the_followers_strategy_since_the_last_island() -> None:
             break
     assert len(accepted) == 2
     edge = accepted[1].edge
-    assert edge is not None and str(edge.strategy) == "Go 1150"
+    # The follower's record, then the drive from where the star started to the island origin
+    # (where the model's measure peaks along the legs; exact odometry: odometry = truth).
+    anchor, origin = starts[-1].anchor_odom, accepted[1].anchor_odom
+    assert anchor is not None and origin is not None and edge is not None
+    shift = origin.relative_to(anchor)
+    assert math.hypot(shift.x, shift.y) <= builder.config.star.leg_length_m + 1e-6
+    moved = strategy_displacement(edge.strategy)
+    want = Pose2D(11.5, 0.0, 0.0).compose(shift)
+    assert math.hypot(moved.x - want.x, moved.y - want.y) < 0.02, (str(edge.strategy), shift)
+    assert abs(wrap_angle(moved.theta)) < math.radians(1.0)
     assert builder.edges == [edge]
     assert [i.id for i in builder.islands] == [0, 1]
     assert set(builder.island_origins_odom) == {0, 1}
@@ -671,6 +683,43 @@ def test_a_star_at_a_known_island_becomes_a_revisit_not_a_duplicate() -> None:
     rel = back.odom_pose.relative_to(island0.origin_truth)
     assert back.accepted_island_id == 0 and math.hypot(rel.x, rel.y) < 0.1
     assert with_star.robot.collisions == 0
+
+
+def test_island_origin_moves_to_the_measure_peak_along_the_star_legs() -> None:
+    """Island 1 (the west end of the box corridor) is anchored where the attempt started; with
+    origin_at_peak its origin moves along a driven leg to where its own model's measure is
+    higher, the model is the same walls in the shifted frame, and the robot is handed back
+    there."""
+
+    def island1(peak: bool) -> tuple[Island, Pose2D, Pose2D, Pose2D]:
+        b = IslandBuilder(BuilderConfig(origin_at_peak=peak, revisit=RevisitConfig(enabled=False)))
+        run = run_there_and_back(b, 110.0)
+        start = [e for e in run.events if e.kind is EventKind.ATTEMPT_STARTED][1]
+        acc = [e for e in run.events if e.kind is EventKind.ISLAND_ACCEPTED][1]
+        back = [e for e in run.events if e.kind is EventKind.HANDED_BACK][1]
+        assert acc.island is not None and start.anchor_odom and acc.anchor_odom
+        return acc.island, start.anchor_odom, acc.anchor_odom, back.odom_pose
+
+    fixed, anchor0, origin0, _ = island1(peak=False)
+    assert origin0 == anchor0
+    moved, anchor, origin, back = island1(peak=True)
+    assert anchor == anchor0  # same run up to the decision
+    shift = origin.relative_to(anchor)
+    assert 0.1 < math.hypot(shift.x, shift.y) <= StarConfig().leg_length_m + 1e-6
+    assert np.allclose(moved.model.segments + [shift.x, shift.y] * 2, fixed.model.segments)
+    cfg = BuilderConfig()
+    core = CoreMeasures(cfg)
+
+    def r_at(p: Pose2D) -> float:
+        at = np.array([p.x, p.y])
+        return normalized_measures(cfg, core.evaluate(moved.model.segments, at))[1]
+
+    at_anchor = anchor.relative_to(origin)
+    assert r_at(Pose2D(0.0, 0.0, 0.0)) >= (1.0 + cfg.peak_min_gain) * r_at(at_anchor)
+    assert moved.origin_truth is not None and fixed.origin_truth is not None
+    assert moved.origin_truth.relative_to(fixed.origin_truth).x == pytest.approx(shift.x, abs=1e-6)
+    rel = back.relative_to(origin)
+    assert math.hypot(rel.x, rel.y) < 0.1  # handed back at the new origin
 
 
 def test_bad_revisit_config_names_the_field() -> None:

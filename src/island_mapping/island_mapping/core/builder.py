@@ -284,6 +284,15 @@ class RevisitConfig:
             "search stays a few thousand guesses (localization refines them) [-]"
         },
     )
+    star_max_residual_m: float = field(
+        default=0.2,
+        metadata={
+            "help": "largest RMS residual of a recognition from a star's points: echoes from "
+            "five places and wide cones near walls scatter more (a true match in a box corridor "
+            "had 0.152 m; the false ones found in paper_fig4 had 0.11-0.14, so the residual "
+            "does not guard against look-alikes, the constraint and ambiguity tests do) [m]"
+        },
+    )
     star_max_points: int = field(
         default=300, metadata={"help": "the star's points are thinned evenly to this many [-]"}
     )
@@ -326,6 +335,7 @@ class RevisitConfig:
             "dock_tol_deg",
             "strategy_min_go_m",
             "star_search_sigmas",
+            "star_max_residual_m",
             "star_search_max_m",
             "star_search_max_deg",
         ):
@@ -445,6 +455,25 @@ class BuilderConfig:
             "islands); false = accept at once [bool]"
         },
     )
+    origin_at_peak: bool = field(
+        default=True,
+        metadata={
+            "help": "put an accepted island's origin where its own model's measure peaks along "
+            "the star legs the robot drove (not where the attempt happened to start: the quick "
+            "check passes a few metres before a junction, or just past a door); the edge gets "
+            "the drive from the anchor to the origin [bool]"
+        },
+    )
+    peak_step_m: float = field(
+        default=0.2, metadata={"help": "spacing of the candidate origins along the legs [m]"}
+    )
+    peak_min_gain: float = field(
+        default=0.1,
+        metadata={
+            "help": "move the origin only when the peak's normalized measure beats the "
+            "anchor's by this fraction [-]"
+        },
+    )
     verify_localization: bool = field(
         default=True,
         metadata={
@@ -497,7 +526,8 @@ class BuilderConfig:
     )
 
     def __post_init__(self) -> None:
-        for name in ("e_min_m", "threshold_line", "threshold_fisher", "quick_history_m"):
+        for name in ("e_min_m", "threshold_line", "threshold_fisher", "quick_history_m",
+                     "peak_step_m"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise BuilderError(f"BuilderConfig.{name}: expected a finite number > 0, got {v!r}")
@@ -508,6 +538,7 @@ class BuilderConfig:
             "settled_go_m",
             "dismiss_fraction",
             "first_island_min_measure",
+            "peak_min_gain",
         ):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
@@ -1133,39 +1164,52 @@ class IslandBuilder:
         if self.config.verify_localization and not att.first and not self._verify(model):
             self._dismiss(partial=False, reason=DismissReason.LOCALIZATION_CHECK)
             return
+        shift = Pose2D(0.0, 0.0, 0.0)  # the island origin in the anchor's frame
+        drive: tuple[StrategyPrimitive, ...] = ()
+        if self.config.origin_at_peak and not att.first and len(model) > 0:
+            shift, r_peak = self._peak_origin(model, att)
+            if shift.x != 0.0 or shift.y != 0.0:
+                model = LineModel(model.segments - np.array([shift.x, shift.y] * 2))
+                att.best = max(att.best, r_peak)
+                bearing = math.atan2(shift.y, shift.x)
+                go = StrategyPrimitive(PrimitiveKind.GO, round(100 * math.hypot(shift.x, shift.y)))
+                drive = (_rot(bearing), go, _rot(-bearing))
+        origin = att.anchor.compose(shift)
         island = Island(
             id=len(self.islands),
             model=model,
             model_type=att.best_type,
             r=float(att.best),
             built_at_s=self._t,
-            origin_truth=att.anchor_truth,
+            origin_truth=None if att.anchor_truth is None else att.anchor_truth.compose(shift),
         )
         edge = None
         if self._last_island is not None:
-            length = max(self._path_m - self._island_path_start_m, 0.0)
+            length = max(self._path_m - self._island_path_start_m, 0.0) + math.hypot(
+                shift.x, shift.y)
             edge = Edge(
                 source=self._last_island.id,
                 target=island.id,
-                strategy=self._strategy,
+                strategy=normalize_strategy(ControlStrategy(self._strategy.steps + drive)),
                 weight=length + att.epsilon_m,
                 length_m=length,
                 expected_error_m=att.epsilon_m,
             )
             self.edges.append(edge)
         self.islands.append(island)
-        self.island_origins_odom[island.id] = att.anchor
+        self.island_origins_odom[island.id] = origin
         if self._last_island is not None and self._last_island.id in self._known:
-            self._link(self._last_island.id, island.id, att.anchor, att.epsilon_m)
-        self._known[island.id] = (att.anchor, att.anchor_cov)
+            self._link(self._last_island.id, island.id, origin, att.epsilon_m)
+        self._known[island.id] = (origin, att.anchor_cov)
         self._last_island = island
         if self._star_rel is not None:  # epsilon restarts from the island origin
             self._rel.p = self._star_rel.p.copy()
         att.outcome = EventKind.ISLAND_ACCEPTED
+        att.anchor = origin  # the robot returns to the island origin before it is handed back
         self._emit(
             EventKind.ISLAND_ACCEPTED,
             epsilon_m=att.epsilon_m,
-            anchor_odom=att.anchor,
+            anchor_odom=origin,
             measure=att.best,
             bound=att.bound,
             legs_m=tuple(att.legs_done),
@@ -1173,6 +1217,24 @@ class IslandBuilder:
             edge=edge,
         )
         self._state = _State.RETURNING
+
+    def _peak_origin(self, model: LineModel, att: _Attempt) -> tuple[Pose2D, float]:
+        """Where along the driven star legs the model's normalized measure peaks: (the origin
+        in the anchor frame, its measure); the anchor itself unless the peak beats it by
+        peak_min_gain."""
+        cfg = self.config
+        _, at_anchor = normalized_measures(cfg, self._evaluate(model.segments, np.zeros(2)))
+        best, best_r = Pose2D(0.0, 0.0, 0.0), at_anchor
+        for bearing, length in att.legs_done:
+            c, s = math.cos(bearing), math.sin(bearing)
+            for d in np.arange(cfg.peak_step_m, length + 1e-9, cfg.peak_step_m):
+                p = np.array([d * c, d * s])
+                _, r = normalized_measures(cfg, self._evaluate(model.segments, p))
+                if r > best_r:
+                    best, best_r = Pose2D(float(p[0]), float(p[1]), 0.0), r
+        if best_r <= at_anchor * (1.0 + cfg.peak_min_gain):
+            return Pose2D(0.0, 0.0, 0.0), at_anchor
+        return best, best_r
 
     def _verify(self, model: LineModel) -> bool:
         """Do the points seen from the origin localize back onto it from offset guesses?"""
@@ -1259,7 +1321,8 @@ class IslandBuilder:
                 # clipped its search to 6 m took the T at (9, 22) for the one at (9, 9)).
                 self._refuse("drift_too_large")
                 continue
-            found = self._search_island(island, pts, est, radius, max_dth, step)
+            max_res = rc.star_max_residual_m if star else rc.max_residual_m
+            found = self._search_island(island, pts, est, radius, max_dth, step, max_res)
             if found is not None and (best is None or found.residual_m < best.residual_m):
                 best = found
         return best
@@ -1272,6 +1335,7 @@ class IslandBuilder:
         radius_m: float,
         max_dth_rad: float,
         step_m: float,
+        max_residual_m: float,
     ) -> Recognition | None:
         rc = self.config.revisit
         segs = island.model.segments
@@ -1310,7 +1374,7 @@ class IslandBuilder:
             if not res.converged:
                 self._refuse("not_converged")
                 continue
-            if res.residual_m > rc.max_residual_m:
+            if res.residual_m > max_residual_m:
                 self._refuse("residual")
                 continue
             if res.constraint < rc.min_constraint:
