@@ -27,7 +27,6 @@ from island_mapping.core.builder import (
     StarConfig,
     eq3_bound,
     event_to_dict,
-    followed_by,
     normalized_measures,
 )
 from island_mapping.core.graph import strategy_displacement
@@ -721,25 +720,6 @@ def test_island_origin_moves_to_the_measure_peak_along_the_star_legs() -> None:
     assert moved.origin_truth.relative_to(fixed.origin_truth).x == pytest.approx(shift.x, abs=1e-6)
     rel = back.relative_to(origin)
     assert math.hypot(rel.x, rel.y) < 0.1  # handed back at the new origin
-
-
-@pytest.mark.parametrize(("record", "drive", "expected"), [
-    ("Go 853", "Rot 180, Go 100, Rot 180", "Go 753"),  # back along the last Go: shorten it
-    ("Go 853", "Go 100", "Go 953"),  # on along it: merge
-    ("Go 300, Rot 90", "Rot 180, Go 100, Rot 180", "Go 300, Rot 270, Go 100, Rot 180"),
-    ("Go 50", "Rot 180, Go 100, Rot 180", "Go 50, Rot 180, Go 100, Rot 180"),  # past the start
-    ("", "Rot 90, Go 120, Rot 270", "Rot 90, Go 120, Rot 270"),
-])
-def test_the_drive_onto_a_moved_origin_joins_the_followers_record(
-    record: str, drive: str, expected: str,
-) -> None:
-    joined = followed_by(ControlStrategy.parse(record), ControlStrategy.parse(drive).steps)
-    assert str(joined) == expected
-    # Same place and heading either way (Go steps along one hallway line).
-    a = strategy_displacement(joined)
-    b = strategy_displacement(ControlStrategy.parse(record + (", " if record else "") + drive))
-    assert math.hypot(a.x - b.x, a.y - b.y) < 1e-9
-    assert abs(wrap_angle(a.theta - b.theta)) < 1e-9
 
 
 def test_bad_revisit_config_names_the_field() -> None:

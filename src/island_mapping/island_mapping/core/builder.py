@@ -59,7 +59,7 @@ from island_msgs_py.types import (
 )
 
 from island_mapping.core.fisher import FisherConfig
-from island_mapping.core.graph import TURN_AROUND_DEG, normalize_strategy
+from island_mapping.core.graph import normalize_strategy
 from island_mapping.core.lines import LineFitConfig, fit_lines, point_segment_distance
 from island_mapping.core.localize import LocalizeConfig, Solver, localize
 from island_mapping.core.measure import MeasureConfig, evaluate_models
@@ -1171,7 +1171,9 @@ class IslandBuilder:
             if shift.x != 0.0 or shift.y != 0.0:
                 model = LineModel(model.segments - np.array([shift.x, shift.y] * 2))
                 att.best = max(att.best, r_peak)
-                drive = self._drive_to(shift)
+                bearing = math.atan2(shift.y, shift.x)
+                go = StrategyPrimitive(PrimitiveKind.GO, round(100 * math.hypot(shift.x, shift.y)))
+                drive = (_rot(bearing), go, _rot(-bearing))
         origin = att.anchor.compose(shift)
         island = Island(
             id=len(self.islands),
@@ -1188,7 +1190,7 @@ class IslandBuilder:
             edge = Edge(
                 source=self._last_island.id,
                 target=island.id,
-                strategy=followed_by(self._strategy, drive),
+                strategy=normalize_strategy(ControlStrategy(self._strategy.steps + drive)),
                 weight=length + att.epsilon_m,
                 length_m=length,
                 expected_error_m=att.epsilon_m,
@@ -1215,13 +1217,6 @@ class IslandBuilder:
             edge=edge,
         )
         self._state = _State.RETURNING
-
-    @staticmethod
-    def _drive_to(shift: Pose2D) -> tuple[StrategyPrimitive, ...]:
-        """The steps from the anchor (heading 0) to `shift` [m] in its frame, same heading."""
-        bearing = math.atan2(shift.y, shift.x)
-        go = StrategyPrimitive(PrimitiveKind.GO, round(100 * math.hypot(shift.x, shift.y)))
-        return (_rot(bearing), go, _rot(-bearing))
 
     def _peak_origin(self, model: LineModel, att: _Attempt) -> tuple[Pose2D, float]:
         """Where along the driven star legs the model's normalized measure peaks: (the origin
@@ -1811,21 +1806,6 @@ class StampSync:
         while len(self._odom) > self.max_buffer:  # no scan is waiting for these
             self._feed_odometry_until(self._odom[0][0])
         return out
-
-
-def followed_by(strategy: ControlStrategy, drive: tuple[StrategyPrimitive, ...]) -> ControlStrategy:
-    """`strategy` followed by `drive`, merged; a drive straight back along the last Go
-    (`Rot 180, Go b, Rot 180` after `Go a`, a > b) shortens that Go to `Go a-b` instead."""
-    steps = strategy.steps
-    back = (
-        len(drive) == 3
-        and drive[1].kind is PrimitiveKind.GO
-        and all(d.kind is PrimitiveKind.ROT and d.value == TURN_AROUND_DEG for d in drive[::2])
-    )
-    if back and steps and steps[-1].kind is PrimitiveKind.GO and steps[-1].value > drive[1].value:
-        shorter = StrategyPrimitive(PrimitiveKind.GO, steps[-1].value - drive[1].value)
-        return ControlStrategy((*steps[:-1], shorter))
-    return normalize_strategy(ControlStrategy(steps + drive))
 
 
 def _scan_points(r: FloatArray, a: FloatArray, pose: Pose2D) -> FloatArray:
