@@ -20,6 +20,24 @@ from rclpy.node import Node
 
 T = TypeVar("T")
 
+BAD_MESSAGE_THROTTLE_S = 2.0
+"""A flood of bad messages logs at most one warning per this many seconds (per node)."""
+
+
+class BadMessageLog:
+    """Counts the messages a node ignored as bad and logs each, throttled: a node never dies on a
+    bad message. Call it with what was bad (a topic) and the error that says why."""
+
+    def __init__(self, node: Node, throttle_s: float = BAD_MESSAGE_THROTTLE_S) -> None:
+        self._logger = node.get_logger()
+        self._throttle_s = throttle_s
+        self.count = 0
+
+    def __call__(self, what: str, exc: Exception) -> None:
+        self.count += 1
+        self._logger.warn(f"ignored bad {what} ({self.count} so far): {exc}",
+                          throttle_duration_sec=self._throttle_s)
+
 
 def ensure_ros_env() -> None:
     """Keep DDS discovery on this machine unless the user set otherwise (call before rclpy.init)."""

@@ -23,7 +23,7 @@ from typing import Any
 
 from geometry_msgs.msg import TwistStamped
 from island_msgs_py.qos import LATCHED, STREAM_QOS
-from island_msgs_py.ros_params import declare_config, run_node
+from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
 from island_msgs_py.types import ControlStrategy, IslandTypeError
 from island_sim.conversions import (
     ConversionError,
@@ -44,7 +44,6 @@ from island_mapping.core.builder import BuilderEvent, CommandMode, EventKind
 from island_msgs_py import conversions as cv
 
 NODE_NAME = "island_builder_node"
-WARN_THROTTLE_S = 2.0
 ODOM_BUFFER = 200  # stamps kept for pairing scans with odometry (4 s at 50 Hz)
 
 
@@ -53,7 +52,7 @@ class IslandBuilderNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         self.cfg = declare_config(self, "builder", core.BuilderConfig())
         self.builder = core.IslandBuilder(self.cfg)
-        self.bad_msg_count = 0
+        self._warn = BadMessageLog(self)
         self.follower_enabled = True  # confirmed state of the hall follower
         self._enable_pending: bool | None = None
         self.sync = core.StampSync(self.builder, ODOM_BUFFER)
@@ -67,10 +66,10 @@ class IslandBuilderNode(Node):
         self.reset_cli = self.create_client(Trigger, "/hall_follower/reset")
         self.add_cli = self.create_client(SetParameters, "/topo_graph/add")
 
-    def _warn(self, what: str, exc: Exception) -> None:
-        self.bad_msg_count += 1
-        self.get_logger().warn(f"ignored bad {what} ({self.bad_msg_count} so far): {exc}",
-                               throttle_duration_sec=WARN_THROTTLE_S)
+    @property
+    def bad_msg_count(self) -> int:
+        """Messages ignored as bad so far."""
+        return self._warn.count
 
     # --- inputs: each scan meets the odometry and ground truth of its stamp (core.StampSync) --
     def _on_odom(self, msg: Odometry) -> None:

@@ -20,7 +20,7 @@ from typing import Any
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from island_msgs_py.json_io import GraphFormatError
 from island_msgs_py.qos import STREAM_QOS
-from island_msgs_py.ros_params import declare_config, run_node
+from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
 from island_msgs_py.types import FloatArray, IslandTypeError
 from island_sim.conversions import (
     ConversionError,
@@ -40,7 +40,6 @@ from island_msgs_py import conversions as cv
 from island_msgs_py import json_io
 
 NODE_NAME = "island_localizer_node"
-WARN_THROTTLE_S = 2.0
 ODOM_BUFFER = 200  # odometry stamps kept for pairing scans (4 s at 50 Hz)
 
 
@@ -48,7 +47,7 @@ class IslandLocalizerNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
         self.tracker = IslandTracker(declare_config(self, "tracker", TrackerConfig()))
-        self.bad_msg_count = 0
+        self._warn = BadMessageLog(self)
         self.published = 0
         self._pairer: ScanOdomPairer[tuple[FloatArray, FloatArray]] = ScanOdomPairer(
             ODOM_BUFFER)
@@ -57,10 +56,10 @@ class IslandLocalizerNode(Node):
         self.create_subscription(Odometry, "/odom", self._on_odom, STREAM_QOS)
         self.create_subscription(LaserScan, "/sonar/scan", self._on_scan, STREAM_QOS)
 
-    def _warn(self, what: str, exc: Exception) -> None:
-        self.bad_msg_count += 1
-        self.get_logger().warn(f"ignored bad {what} ({self.bad_msg_count} so far): {exc}",
-                               throttle_duration_sec=WARN_THROTTLE_S)
+    @property
+    def bad_msg_count(self) -> int:
+        """Messages ignored as bad so far."""
+        return self._warn.count
 
     def _on_event(self, msg: String) -> None:
         try:

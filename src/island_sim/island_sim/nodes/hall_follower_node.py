@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from geometry_msgs.msg import TwistStamped
 from island_msgs_py.qos import LATCHED, STREAM_QOS
-from island_msgs_py.ros_params import declare_config, run_node
+from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
 from island_msgs_py.types import FloatArray, Pose2D
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
@@ -49,7 +49,6 @@ from island_sim.core.hall_follower import (
 from island_sim.core.stamps import Paired, ScanOdomPairer
 
 NODE_NAME = "hall_follower_node"
-WARN_THROTTLE_S = 2.0
 
 
 @dataclass(frozen=True)
@@ -71,7 +70,7 @@ class HallFollowerNode(Node):
         self.cfg = declare_config(self, "", HallFollowerNodeConfig())
         self.follower = HallFollower(self.cfg.follower, np.random.default_rng(self.cfg.seed))
         self.scans_processed = 0
-        self.bad_msg_count = 0
+        self._warn = BadMessageLog(self)
         self._pairer: ScanOdomPairer[tuple[FloatArray, FloatArray]] = ScanOdomPairer(
             self.cfg.odom_buffer)
         self._last_strategy: str | None = None
@@ -84,10 +83,10 @@ class HallFollowerNode(Node):
         self._publish_strategy()
 
     # --- inputs --------------------------------------------------------------------------------
-    def _warn(self, what: str, exc: Exception) -> None:
-        self.bad_msg_count += 1
-        self.get_logger().warn(f"ignored bad {what} ({self.bad_msg_count} so far): {exc}",
-                               throttle_duration_sec=WARN_THROTTLE_S)
+    @property
+    def bad_msg_count(self) -> int:
+        """Messages ignored as bad so far."""
+        return self._warn.count
 
     def _on_odom(self, msg: Odometry) -> None:
         try:

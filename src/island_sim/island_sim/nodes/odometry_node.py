@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from geometry_msgs.msg import TwistStamped
 from island_msgs_py.qos import STREAM_QOS
-from island_msgs_py.ros_params import declare_config, run_node
+from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
 from island_msgs_py.types import Pose2D
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
@@ -118,7 +118,7 @@ class OdometryNode(Node):
         self._clock_msg = Clock()
         self.step_count = 0
         self.gate = CommandGate(sim.lockstep, round(sim.cmd_timeout_s * 1e9))
-        self.bad_cmd_count = 0
+        self._warn = BadMessageLog(self)
         self.lockstep_timeouts = 0
         self._wait_since = 0.0
         self._started = not sim.lockstep
@@ -147,9 +147,7 @@ class OdometryNode(Node):
         try:
             v, w, stamp_ns = twist_stamped_to_command(msg)
         except ConversionError as exc:
-            self.bad_cmd_count += 1
-            self.get_logger().warn(f"ignored bad /cmd_vel ({self.bad_cmd_count} so far): {exc}",
-                                   throttle_duration_sec=WARN_THROTTLE_S)
+            self._warn("/cmd_vel", exc)
             return
         if self.gate.offer(v, w, stamp_ns, self.sim_time_ns):  # the awaited answer came
             if self.cfg.sim.real_time_factor > 0:
@@ -168,6 +166,11 @@ class OdometryNode(Node):
     def finished(self) -> bool:
         stop = self.cfg.sim.stop_after_s
         return stop > 0 and self.sim_time_ns >= round(stop * 1e9)
+
+    @property
+    def bad_cmd_count(self) -> int:
+        """/cmd_vel messages ignored as bad (NaN or infinite) so far."""
+        return self._warn.count
 
     @property
     def cmd_count(self) -> int:

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 from island_msgs_py.qos import STREAM_QOS
-from island_msgs_py.ros_params import declare_config, run_node
+from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan, Range
@@ -29,7 +29,6 @@ from island_sim.core.sonar import SonarConfig, SonarModel
 from island_sim.core.world import load_world
 
 NODE_NAME = "sonar_node"
-WARN_THROTTLE_S = 2.0
 
 
 class SonarNodeError(ValueError):
@@ -68,7 +67,7 @@ class SonarNode(Node):
         self.period_ns = round(1e9 / self.cfg.sensor_rate_hz)
         self.limits_m = self.model.scan_limits_m()
         self.scans_published = 0
-        self.bad_msg_count = 0
+        self._warn = BadMessageLog(self)
         self._last_period: int | None = None
         self.scan_pub = self.create_publisher(LaserScan, "/sonar/scan", STREAM_QOS)
         self.range_pubs = []
@@ -79,13 +78,16 @@ class SonarNode(Node):
             ]
         self.create_subscription(Odometry, "/ground_truth", self._on_truth, STREAM_QOS)
 
+    @property
+    def bad_msg_count(self) -> int:
+        """Messages ignored as bad so far."""
+        return self._warn.count
+
     def _on_truth(self, msg: Odometry) -> None:
         try:
             pose, _, t_ns = odometry_to_pose(msg)
         except ConversionError as exc:
-            self.bad_msg_count += 1
-            self.get_logger().warn(f"ignored bad /ground_truth: {exc}",
-                                   throttle_duration_sec=WARN_THROTTLE_S)
+            self._warn("/ground_truth", exc)
             return
         period = t_ns // self.period_ns
         if self._last_period is not None and period <= self._last_period:
