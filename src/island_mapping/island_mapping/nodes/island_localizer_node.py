@@ -23,16 +23,11 @@ from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
 from island_msgs_py.types import FloatArray, IslandTypeError
 from island_sim.conversions import (
-    ConversionError,
     ns_to_time,
-    odometry_to_pose,
-    scan_to_arrays,
-    time_to_ns,
 )
-from island_sim.core.stamps import Paired, ScanOdomPairer
-from nav_msgs.msg import Odometry
+from island_sim.core.stamps import Paired
+from island_sim.scan_inputs import subscribe_paired_scans
 from rclpy.node import Node
-from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
 
 from island_mapping.core.navigate import IslandTracker, TrackerConfig
@@ -49,12 +44,9 @@ class IslandLocalizerNode(Node):
         self.tracker = IslandTracker(declare_config(self, "tracker", TrackerConfig()))
         self._warn = BadMessageLog(self)
         self.published = 0
-        self._pairer: ScanOdomPairer[tuple[FloatArray, FloatArray]] = ScanOdomPairer(
-            ODOM_BUFFER)
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "/island_pose", 10)
         self.create_subscription(String, "/island_builder/events", self._on_event, STREAM_QOS)
-        self.create_subscription(Odometry, "/odom", self._on_odom, STREAM_QOS)
-        self.create_subscription(LaserScan, "/sonar/scan", self._on_scan, STREAM_QOS)
+        subscribe_paired_scans(self, ODOM_BUFFER, self._handle, self._warn)
 
     @property
     def bad_msg_count(self) -> int:
@@ -72,22 +64,6 @@ class IslandLocalizerNode(Node):
             self._warn("/island_builder/events", exc)
             return
         self.tracker.add_island(island, origin)
-
-    def _on_odom(self, msg: Odometry) -> None:
-        try:
-            pose, _, t_ns = odometry_to_pose(msg)
-        except ConversionError as exc:
-            self._warn("/odom", exc)
-            return
-        self._handle(self._pairer.odometry(t_ns, pose))
-
-    def _on_scan(self, msg: LaserScan) -> None:
-        try:
-            ranges, angles = scan_to_arrays(msg)
-        except ConversionError as exc:
-            self._warn("/sonar/scan", exc)
-            return
-        self._handle(self._pairer.scan(time_to_ns(msg.header.stamp), (ranges, angles)))
 
     def _handle(self, paired: list[Paired[tuple[FloatArray, FloatArray]]]) -> None:
         for p in paired:

@@ -28,25 +28,20 @@ from geometry_msgs.msg import TwistStamped
 from island_msgs_py.qos import LATCHED, STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
 from island_msgs_py.types import FloatArray, Pose2D
-from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
 from island_sim.conversions import (
-    ConversionError,
     command_to_twist_stamped,
-    odometry_to_pose,
-    scan_to_arrays,
-    time_to_ns,
 )
 from island_sim.core.hall_follower import (
     HallFollower,
     HallFollowerConfig,
     HallFollowerError,
 )
-from island_sim.core.stamps import Paired, ScanOdomPairer
+from island_sim.core.stamps import Paired
+from island_sim.scan_inputs import subscribe_paired_scans
 
 NODE_NAME = "hall_follower_node"
 
@@ -71,13 +66,10 @@ class HallFollowerNode(Node):
         self.follower = HallFollower(self.cfg.follower, np.random.default_rng(self.cfg.seed))
         self.scans_processed = 0
         self._warn = BadMessageLog(self)
-        self._pairer: ScanOdomPairer[tuple[FloatArray, FloatArray]] = ScanOdomPairer(
-            self.cfg.odom_buffer)
         self._last_strategy: str | None = None
         self.cmd_pub = self.create_publisher(TwistStamped, "/cmd_vel", STREAM_QOS)
         self.strategy_pub = self.create_publisher(String, "/hall_follower/strategy", LATCHED)
-        self.create_subscription(LaserScan, "/sonar/scan", self._on_scan, STREAM_QOS)
-        self.create_subscription(Odometry, "/odom", self._on_odom, STREAM_QOS)
+        subscribe_paired_scans(self, self.cfg.odom_buffer, self._handle, self._warn)
         self.create_service(Trigger, "/hall_follower/reset", self._on_reset)
         self.create_service(SetBool, "/hall_follower/enable", self._on_enable)
         self._publish_strategy()
@@ -87,25 +79,6 @@ class HallFollowerNode(Node):
     def bad_msg_count(self) -> int:
         """Messages ignored as bad so far."""
         return self._warn.count
-
-    def _on_odom(self, msg: Odometry) -> None:
-        try:
-            pose, _, t_ns = odometry_to_pose(msg)
-        except ConversionError as exc:
-            self._warn("/odom", exc)
-            return
-        self._handle(self._pairer.odometry(t_ns, pose))
-
-    def _on_scan(self, msg: LaserScan) -> None:
-        try:
-            ranges, angles = scan_to_arrays(msg)
-        except ConversionError as exc:
-            self._warn("/sonar/scan", exc)
-            return
-        dropped = self._pairer.dropped_scans
-        self._handle(self._pairer.scan(time_to_ns(msg.header.stamp), (ranges, angles)))
-        if self._pairer.dropped_scans > dropped:
-            self._warn("/sonar/scan", ValueError("no odometry at or after a scan's stamp"))
 
     def _handle(self, paired: list[Paired[tuple[FloatArray, FloatArray]]]) -> None:
         for p in paired:

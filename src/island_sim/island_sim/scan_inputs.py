@@ -1,0 +1,56 @@
+"""/sonar/scan and /odom for a node that acts on each scan with the odometry of its stamp.
+
+The message side of `island_sim.core.stamps.ScanOdomPairer`, shared by the hall follower and the
+island localizer nodes: converts both topics, feeds the pairer and hands every released scan
+(stamp, (ranges, angles), pose) to the node; a bad message, or a scan that can never be paired,
+goes to the node's bad-message log instead.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from island_msgs_py.qos import STREAM_QOS
+from island_msgs_py.types import FloatArray
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from sensor_msgs.msg import LaserScan
+
+from island_sim.conversions import ConversionError, odometry_to_pose, scan_to_arrays, time_to_ns
+from island_sim.core.stamps import Paired, ScanOdomPairer
+
+ScanArrays = tuple[FloatArray, FloatArray]
+"""(ranges [m], angles [rad]) of one scan."""
+
+
+def subscribe_paired_scans(
+    node: Node,
+    max_buffer: int,
+    handle: Callable[[list[Paired[ScanArrays]]], None],
+    warn: Callable[[str, Exception], None],
+) -> ScanOdomPairer[ScanArrays]:
+    """Subscribe `node` to /odom and /sonar/scan; returns the pairer (for its counters)."""
+    pairer: ScanOdomPairer[ScanArrays] = ScanOdomPairer(max_buffer)
+
+    def on_odom(msg: Odometry) -> None:
+        try:
+            pose, _, t_ns = odometry_to_pose(msg)
+        except ConversionError as exc:
+            warn("/odom", exc)
+            return
+        handle(pairer.odometry(t_ns, pose))
+
+    def on_scan(msg: LaserScan) -> None:
+        try:
+            scan = scan_to_arrays(msg)
+        except ConversionError as exc:
+            warn("/sonar/scan", exc)
+            return
+        dropped = pairer.dropped_scans
+        handle(pairer.scan(time_to_ns(msg.header.stamp), scan))
+        if pairer.dropped_scans > dropped:
+            warn("/sonar/scan", ValueError("no odometry at or after a scan's stamp"))
+
+    node.create_subscription(Odometry, "/odom", on_odom, STREAM_QOS)
+    node.create_subscription(LaserScan, "/sonar/scan", on_scan, STREAM_QOS)
+    return pairer
