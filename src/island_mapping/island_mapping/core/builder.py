@@ -60,7 +60,12 @@ from island_msgs_py.types import (
 
 from island_mapping.core.fisher import FisherConfig
 from island_mapping.core.graph import normalize_strategy
-from island_mapping.core.lines import LineFitConfig, fit_lines, point_segment_distance
+from island_mapping.core.lines import (
+    LineFitConfig,
+    fit_lines,
+    point_segment_distance,
+    thin_evenly,
+)
 from island_mapping.core.localize import LocalizeConfig, Solver, localize
 from island_mapping.core.measure import MeasureConfig, evaluate_models
 from island_msgs_py import json_io
@@ -877,6 +882,8 @@ class IslandBuilder:
         if self._odom is None:
             return
         pts = _scan_points(r, a, self._odom)
+        near = r <= self.config.revisit.max_range_m  # far sonar echoes are wide cones
+        near_pts = _scan_points(r[near], a[near], self._odom)  # for recognising known islands
         if self._state is _State.STAR and self._attempt is not None:
             att = self._attempt
             local = _to_frame(pts, att.anchor)
@@ -884,9 +891,7 @@ class IslandBuilder:
             rel = self._odom.relative_to(att.anchor)
             if math.hypot(rel.x, rel.y) <= self.config.centre_radius_m:
                 att.centre_points.append(local)
-            near = r <= self.config.revisit.max_range_m  # far sonar echoes are wide cones
-            att.near_points.append(_to_frame(_scan_points(r[near], a[near], self._odom),
-                                             att.anchor))
+            att.near_points.append(_to_frame(near_pts, att.anchor))
         if self._state is _State.DOCKING and self._dock is not None:
             if self._dock.phase is _DockPhase.LOOK:
                 self._dock.points.append(pts)
@@ -896,8 +901,7 @@ class IslandBuilder:
             self._recent.popleft()
         if self._state is _State.FOLLOWING:
             hist = self._revisit_recent
-            near = r <= self.config.revisit.max_range_m  # far sonar echoes are wide cones
-            hist.append((self._path_m, _scan_points(r[near], a[near], self._odom)))
+            hist.append((self._path_m, near_pts))
             while hist and hist[0][0] < self._path_m - self.config.revisit.history_m:
                 hist.popleft()
 
@@ -1171,9 +1175,7 @@ class IslandBuilder:
             if shift.x != 0.0 or shift.y != 0.0:
                 model = LineModel(model.segments - np.array([shift.x, shift.y] * 2))
                 att.best = max(att.best, r_peak)
-                bearing = math.atan2(shift.y, shift.x)
-                go = StrategyPrimitive(PrimitiveKind.GO, round(100 * math.hypot(shift.x, shift.y)))
-                drive = (_rot(bearing), go, _rot(-bearing))
+                drive = _drive_onto_origin(Pose2D(-shift.x, -shift.y, 0.0), min_go_m=0.0)
         origin = att.anchor.compose(shift)
         island = Island(
             id=len(self.islands),
@@ -1279,9 +1281,7 @@ class IslandBuilder:
         pts_odom = np.concatenate([p for _, p in self._revisit_recent], axis=0)
         if pts_odom.shape[0] < rc.min_points:
             return None
-        if pts_odom.shape[0] > rc.max_points:
-            keep = np.linspace(0, pts_odom.shape[0] - 1, rc.max_points).round().astype(int)
-            pts_odom = pts_odom[keep]
+        pts_odom = thin_evenly(pts_odom, rc.max_points)
         pts = _to_frame(pts_odom, self._odom)
         return self._recognize_points(pts, self._odom, star=False)
 
@@ -1497,9 +1497,7 @@ class IslandBuilder:
         pts = np.concatenate(att.near_points, axis=0)  # the anchor's frame
         if pts.shape[0] < rc.min_points:
             return None
-        if pts.shape[0] > rc.star_max_points:
-            keep = np.linspace(0, pts.shape[0] - 1, rc.star_max_points).round().astype(int)
-            pts = pts[keep]
+        pts = thin_evenly(pts, rc.star_max_points)
         rec = self._recognize_points(pts, att.anchor, star=True)
         if rec is None:
             return None
@@ -1522,15 +1520,7 @@ class IslandBuilder:
         island = next(i for i in self.islands if i.id == rec.island_id)
         p = rec.pose if strategy_end is None else strategy_end
         dist = math.hypot(p.x, p.y)
-        # The drive to the origin, as the follower would record it: turn to it, go, turn.
-        steps: list[StrategyPrimitive] = []
-        if dist > self.config.revisit.strategy_min_go_m:
-            to_c = wrap_angle(math.atan2(-p.y, -p.x) - p.theta)
-            steps += [_rot(to_c), StrategyPrimitive(PrimitiveKind.GO, round(100 * dist))]
-            steps.append(_rot(-(p.theta + to_c)))
-        else:
-            steps.append(_rot(-p.theta))
-        steps = [s for s in steps if s.value != 0]
+        steps = _drive_onto_origin(p, self.config.revisit.strategy_min_go_m)
         edge = None
         prev = self._last_island
         if prev is not None and prev.id != island.id:
@@ -1539,7 +1529,7 @@ class IslandBuilder:
             new = Edge(
                 source=prev.id,
                 target=island.id,
-                strategy=normalize_strategy(ControlStrategy(self._strategy.steps + tuple(steps))),
+                strategy=normalize_strategy(ControlStrategy(self._strategy.steps + steps)),
                 weight=length + eps,
                 length_m=length,
                 expected_error_m=eps,
@@ -1813,6 +1803,21 @@ def _scan_points(r: FloatArray, a: FloatArray, pose: Pose2D) -> FloatArray:
     ok = np.isfinite(r) & np.isfinite(a)
     ang = a[ok] + pose.theta
     return np.stack([pose.x + r[ok] * np.cos(ang), pose.y + r[ok] * np.sin(ang)], axis=1)
+
+
+def _drive_onto_origin(p: Pose2D, min_go_m: float) -> tuple[StrategyPrimitive, ...]:
+    """The steps from pose `p` in an island's frame onto its origin, facing theta 0, as the hall
+    follower would record them: turn to the origin, go, turn; only the final turn when the origin
+    is `min_go_m` [m] or nearer."""
+    dist = math.hypot(p.x, p.y)
+    steps: tuple[StrategyPrimitive, ...]
+    if dist > min_go_m:
+        to_c = wrap_angle(math.atan2(-p.y, -p.x) - p.theta)
+        steps = (_rot(to_c), StrategyPrimitive(PrimitiveKind.GO, round(100 * dist)),
+                 _rot(-(p.theta + to_c)))
+    else:
+        steps = (_rot(-p.theta),)
+    return tuple(s for s in steps if s.value != 0)
 
 
 def _rot(angle_rad: float) -> StrategyPrimitive:

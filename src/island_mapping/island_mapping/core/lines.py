@@ -180,6 +180,15 @@ def _segment_from(points: FloatArray) -> tuple[FloatArray, _Fit]:
     return np.concatenate([p1, p2]), fit
 
 
+def thin_evenly(points: FloatArray, max_points: int) -> FloatArray:
+    """At most `max_points` of the (K, 2) `points`, taken evenly along the array (scans arrive in
+    order, so this keeps every direction and place represented)."""
+    if points.shape[0] <= max_points:
+        return points
+    keep = np.linspace(0, points.shape[0] - 1, max_points).round().astype(int)
+    return points[keep]
+
+
 def point_segment_distance(points: FloatArray, segments: FloatArray) -> FloatArray:
     """(N, K) Euclidean distances [m] from (N, 2) points to (K, 4) segments."""
     a = segments[None, :, 0:2]

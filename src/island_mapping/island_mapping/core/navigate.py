@@ -56,6 +56,7 @@ from island_mapping.core.builder import (
     IslandBuilder,
 )
 from island_mapping.core.graph import GraphError, TopoGraph, reverse_strategy
+from island_mapping.core.lines import thin_evenly
 from island_mapping.core.localize import (
     LocalizationResult,
     LocalizeConfig,
@@ -431,7 +432,7 @@ def localize_multi(
         ((dx, dy, dth) for dx in offs for dy in offs for dth in dths),
         key=lambda g: math.hypot(g[0], g[1]) + abs(g[2]),
     )
-    points_robot = _thin(points_robot, cfg.max_points)  # evenly: the look-around is redundant
+    points_robot = thin_evenly(points_robot, cfg.max_points)  # evenly: the look-around is redundant
     best: LocalizationResult | None = None
     good: list[Pose2D] = []
     for dx, dy, dth in guesses:
@@ -447,13 +448,6 @@ def localize_multi(
                 break
     assert best is not None
     return best, bool(best.converged and best.residual_m <= cfg.max_residual_m)
-
-
-def _thin(points_robot: FloatArray, max_points: int) -> FloatArray:
-    if points_robot.shape[0] <= max_points:
-        return points_robot
-    keep = np.linspace(0, points_robot.shape[0] - 1, max_points).round().astype(int)
-    return points_robot[keep]
 
 
 def _truth_in(island: Island, true_pose: Pose2D) -> Pose2D:
@@ -478,7 +472,7 @@ def _localize_and_dock(sim: _Sim, island: Island, estimate: Pose2D) -> tuple[boo
     if not trusted and c.axis_search_step_m > 0 and c.axis_search_steps > 0:
         # Search from the fit nearest the estimate: the smallest residual may be a wrong
         # heading basin (paper_fig4 edge 6->7: 2 of 12 starts failed so, 0 of 12 from here).
-        near = localize(island.model, _thin(pts, c.max_points), estimate, c.localize)
+        near = localize(island.model, thin_evenly(pts, c.max_points), estimate, c.localize)
         res, trusted = _search_along_axis(sim, island, pts, near)
     err_m, err_deg = _pose_error(res.pose, _truth_in(island, sim.robot.true_pose))
     first = (trusted, err_m, err_deg)
