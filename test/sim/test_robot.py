@@ -230,3 +230,19 @@ def test_command_gate_waits_by_stamp_and_duplicate_answers_do_not_run_it_ahead()
     assert not free.offer(0.1, 0.0, 0, now_ns=5) and free.answered_ns == 5  # stamp 0 = now
     with pytest.raises(RobotError, match="cmd_timeout_ns"):
         CommandGate(lockstep=True, cmd_timeout_ns=0)
+
+
+def test_sim_clock_publishes_every_step_and_marks_sensor_boundaries_and_the_end() -> None:
+    from island_sim.core.robot import SimClock, SimLoopConfig
+
+    clock = SimClock(SimLoopConfig(stop_after_s=0.2))  # 50 Hz physics, 10 Hz sensor
+    assert clock.at_boundary and clock.sim_time_ns == 0 and not clock.finished
+    published, boundaries = [], []
+    while not clock.finished:
+        published.append(clock.advance())
+        boundaries.append(clock.at_boundary)
+    assert clock.step_count == 10 and clock.sim_time_ns == 200_000_000
+    assert published == [clock.steps_per_publish == 1 or (k + 1) % clock.steps_per_publish == 0
+                         for k in range(10)]
+    assert [k + 1 for k, b in enumerate(boundaries) if b] == [5, 10]  # every 0.1 s
+    assert not SimClock(SimLoopConfig(stop_after_s=0.0)).finished  # 0 = run forever

@@ -244,6 +244,36 @@ class SimLoopConfig:
         return round(self.physics_rate_hz / self.sensor_rate_hz)
 
 
+class SimClock:
+    """Fixed-step simulated time: the step count, which steps publish, which end a sensor period
+    (a lockstep boundary) and when the run is over (`SimLoopConfig.stop_after_s`, 0 = never)."""
+
+    def __init__(self, cfg: SimLoopConfig) -> None:
+        self.dt_ns = cfg.dt_ns
+        self.steps_per_period = cfg.steps_per_sensor_period
+        self.steps_per_publish = cfg.steps_per_publish
+        self._stop_ns = round(cfg.stop_after_s * 1e9)
+        self.step_count = 0
+
+    @property
+    def sim_time_ns(self) -> int:
+        return self.step_count * self.dt_ns
+
+    @property
+    def finished(self) -> bool:
+        return self._stop_ns > 0 and self.sim_time_ns >= self._stop_ns
+
+    @property
+    def at_boundary(self) -> bool:
+        """Sim time is at the start of a sensor period (step 0 included)."""
+        return self.step_count % self.steps_per_period == 0
+
+    def advance(self) -> bool:
+        """One step taken; True when the new instant is to be published."""
+        self.step_count += 1
+        return self.step_count % self.steps_per_publish == 0
+
+
 class RealTimePacer:
     """How many fixed physics steps are due at a wall-clock time for a real-time factor.
 

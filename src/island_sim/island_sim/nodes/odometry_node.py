@@ -49,6 +49,7 @@ from island_sim.core.robot import (
     OdometryConfig,
     RealTimePacer,
     RobotConfig,
+    SimClock,
     SimLoopConfig,
     SimRobot,
 )
@@ -110,13 +111,10 @@ class OdometryNode(Node):
         start = parse_start_pose(self.cfg.start_pose) or self.world.start_pose
         self.robot = SimRobot(self.world, start, np.random.default_rng(self.cfg.seed),
                               self.cfg.robot, self.cfg.odometry)
-        self.dt_ns = sim.dt_ns
-        self.steps_per_period = sim.steps_per_sensor_period
-        self.steps_per_publish = sim.steps_per_publish
+        self.clock = SimClock(sim)
         self._truth_msg = Odometry()  # reused: publishing copies, building costs ~0.2 ms
         self._odom_msg = Odometry()
         self._clock_msg = Clock()
-        self.step_count = 0
         self.gate = CommandGate(sim.lockstep, round(sim.cmd_timeout_s * 1e9))
         self._warn = BadMessageLog(self)
         self.lockstep_timeouts = 0
@@ -124,7 +122,7 @@ class OdometryNode(Node):
         self._started = not sim.lockstep
         self._created = time.monotonic()
         self._pacer = (
-            RealTimePacer(sim.real_time_factor, self.dt_ns, _MAX_STEPS_PER_CALLBACK)
+            RealTimePacer(sim.real_time_factor, sim.dt_ns, _MAX_STEPS_PER_CALLBACK)
             if sim.real_time_factor > 0 else None
         )
         self.odom_pub = self.create_publisher(Odometry, "/odom", STREAM_QOS)
@@ -160,12 +158,15 @@ class OdometryNode(Node):
     # --- stepping ------------------------------------------------------------------------------
     @property
     def sim_time_ns(self) -> int:
-        return self.step_count * self.dt_ns
+        return self.clock.sim_time_ns
+
+    @property
+    def step_count(self) -> int:
+        return self.clock.step_count
 
     @property
     def finished(self) -> bool:
-        stop = self.cfg.sim.stop_after_s
-        return stop > 0 and self.sim_time_ns >= round(stop * 1e9)
+        return self.clock.finished
 
     @property
     def bad_cmd_count(self) -> int:
@@ -201,26 +202,23 @@ class OdometryNode(Node):
             if self._boundary_wait():
                 return
         if self._pacer is not None:
-            budget = self._pacer.steps_due(time.monotonic(), self.step_count)
+            budget = self._pacer.steps_due(time.monotonic(), self.clock.step_count)
         else:
-            budget = min(_MAX_STEPS_PER_CALLBACK, self.steps_per_period)
+            budget = min(_MAX_STEPS_PER_CALLBACK, self.clock.steps_per_period)
         for _ in range(budget):
-            if self.finished:
+            if self.clock.finished:
                 self.timer.cancel()
                 return
-            v, w = self.gate.current(self.sim_time_ns)
-            self.robot.step(v, w, self.dt_ns * 1e-9)
-            self.step_count += 1
-            if self.step_count % self.steps_per_publish == 0:
+            v, w = self.gate.current(self.clock.sim_time_ns)
+            self.robot.step(v, w, self.clock.dt_ns * 1e-9)
+            if self.clock.advance():
                 self._publish()
             if self._boundary_wait():
                 return
 
     def _boundary_wait(self) -> bool:
         """At a sensor boundary in lockstep, wait for that period's command; True if waiting."""
-        if self.step_count % self.steps_per_period != 0 or not self.gate.must_wait(
-            self.sim_time_ns
-        ):
+        if not self.clock.at_boundary or not self.gate.must_wait(self.clock.sim_time_ns):
             return False
         self._wait_since = time.monotonic()
         self.timer.cancel()
