@@ -30,6 +30,7 @@ from island_mapping.core.builder import (
     normalized_measures,
 )
 from island_mapping.core.graph import strategy_displacement
+from island_mapping.core.placement import PlaceKind, classify_place
 from island_msgs_py.types import (
     ControlStrategy,
     Edge,
@@ -236,7 +237,8 @@ def test_edge_carries_the_followers_strategy_since_the_last_island() -> None:
     anchor, origin = starts[-1].anchor_odom, accepted[1].anchor_odom
     assert anchor is not None and origin is not None and edge is not None
     shift = origin.relative_to(anchor)
-    assert math.hypot(shift.x, shift.y) <= builder.config.star.leg_length_m + 1e-6
+    reach = max(builder.config.star.leg_length_m, builder.config.peak_ahead_m)
+    assert math.hypot(shift.x, shift.y) <= reach + 1e-6
     moved = strategy_displacement(edge.strategy)
     want = Pose2D(11.5, 0.0, 0.0).compose(shift)
     assert math.hypot(moved.x - want.x, moved.y - want.y) < 0.02, (str(edge.strategy), shift)
@@ -720,6 +722,50 @@ def test_island_origin_moves_to_the_measure_peak_along_the_star_legs() -> None:
     assert moved.origin_truth.relative_to(fixed.origin_truth).x == pytest.approx(shift.x, abs=1e-6)
     rel = back.relative_to(origin)
     assert math.hypot(rel.x, rel.y) < 0.1  # handed back at the new origin
+
+
+def cross_world() -> World:
+    """A corridor along x (closed at x = -30) crossing one along y at x = 0."""
+    h = HALF_WIDTH_M
+    segs = [[-30.0, -h, -h, -h], [-30.0, h, -h, h], [-h, h, -h, 10.0], [h, h, h, 10.0],
+            [-h, -h, -h, -10.0], [h, -h, h, -10.0], [h, -h, 10.0, -h], [h, h, 10.0, h],
+            [-30.0, -h, -30.0, h]]
+    return World(np.array(segs), "cross")
+
+
+@pytest.mark.parametrize("stop_x", [-3.0, -2.5])
+def test_the_peak_search_reaches_past_the_ahead_leg_into_the_junction(stop_x: float) -> None:
+    """An attempt that starts in the corridor 1.5-2 m before a crossing (the follower stalls
+    there; a low bound floor lets eq. 3 pass early): along the driven legs only, the origin
+    stays in the plain corridor; with peak_ahead_m the search goes on along the arrival
+    heading (clear of the model's walls) and the origin lands at the crossing's mouth, where
+    the robot is handed back."""
+    world = cross_world()
+
+    def island(ahead_m: float) -> tuple[Island, Pose2D, Pose2D, Run]:
+        cfg = BuilderConfig(peak_ahead_m=ahead_m, bound_floor=0.05, build_first_island=False,
+                            revisit=RevisitConfig(enabled=False))
+        run = run_builder(world, Pose2D(-16.0, 0.0, 0.0), IslandBuilder(cfg), 120.0,
+                          lambda p: 0.2 * p, stop_x=stop_x)
+        acc = [e for e in run.events if e.kind is EventKind.ISLAND_ACCEPTED]
+        start = next(e for e in run.events if e.kind is EventKind.ATTEMPT_STARTED)
+        assert len(acc) == 1 and acc[0].island is not None and start.anchor_odom is not None
+        return acc[0].island, start.anchor_odom, acc[0].anchor_odom, run
+
+    legs_only, anchor0, _, _ = island(0.0)
+    ahead, anchor, origin, run = island(3.0)
+    assert anchor == anchor0  # the same run up to the decision
+    assert legs_only.origin_truth is not None and ahead.origin_truth is not None
+    shift = origin.relative_to(anchor)
+    assert shift.x > StarConfig().leg_length_m and abs(shift.y) < 1e-9
+    assert ahead.origin_truth.x > legs_only.origin_truth.x + 0.3
+    segs = world.segments
+    assert classify_place(segs, legs_only.origin_truth.x, legs_only.origin_truth.y) is (
+        PlaceKind.PLAIN_HALLWAY)
+    assert classify_place(segs, ahead.origin_truth.x, ahead.origin_truth.y) is PlaceKind.FEATURE
+    back = next(e for e in run.events if e.kind is EventKind.HANDED_BACK)
+    rel = back.odom_pose.relative_to(origin)
+    assert math.hypot(rel.x, rel.y) < 0.1 and run.robot.collisions == 0
 
 
 def test_bad_revisit_config_names_the_field() -> None:

@@ -472,6 +472,16 @@ class BuilderConfig:
     peak_step_m: float = field(
         default=0.2, metadata={"help": "spacing of the candidate origins along the legs [m]"}
     )
+    peak_ahead_m: float = field(
+        default=3.0,
+        metadata={
+            "help": "also search for the peak beyond the ahead leg, along the arrival heading, "
+            "up to this far from the anchor (within the anchor's free range ahead, the drives "
+            "there from the anchor and from the robot clear of the model's walls): the "
+            "junction the robot was heading into; the model's reach (about 2 m past the anchor "
+            "along a hallway, where its walls end) limits it in practice [m]"
+        },
+    )
     peak_min_gain: float = field(
         default=0.1,
         metadata={
@@ -544,6 +554,7 @@ class BuilderConfig:
             "dismiss_fraction",
             "first_island_min_measure",
             "peak_min_gain",
+            "peak_ahead_m",
         ):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
@@ -780,6 +791,7 @@ class _Attempt:
     phase: _LegPhase = _LegPhase.TURN
     leg_length_m: float = 0.0
     legs_done: list[tuple[float, float]] = field(default_factory=list)
+    ahead_free_m: float = 0.0  # nearest echo ahead of the anchor when the attempt started [m]
     best: float = 0.0
     best_type: ModelType = ModelType.LINE
     model: LineModel | None = None
@@ -1041,6 +1053,7 @@ class IslandBuilder:
             bound=bound,
             first=first,
         )
+        self._attempt.ahead_free_m = self._ahead_free_m()
         first_pts = _to_frame(_scan_points(*self._last_scan, self._odom), self._odom)
         self._attempt.points.append(first_pts)
         self._attempt.centre_points.append(first_pts)
@@ -1229,14 +1242,30 @@ class IslandBuilder:
         best, best_r = Pose2D(0.0, 0.0, 0.0), at_anchor
         for bearing, length in att.legs_done:
             c, s = math.cos(bearing), math.sin(bearing)
-            for d in np.arange(cfg.peak_step_m, length + 1e-9, cfg.peak_step_m):
+            reach = length
+            if bearing == 0.0:
+                reach = max(length, min(cfg.peak_ahead_m, att.ahead_free_m - cfg.star.clearance_m))
+            for d in np.arange(cfg.peak_step_m, reach + 1e-9, cfg.peak_step_m):
                 p = np.array([d * c, d * s])
+                if d > length and not self._reachable(model.segments, p):
+                    break
                 _, r = normalized_measures(cfg, self._evaluate(model.segments, p))
                 if r > best_r:
                     best, best_r = Pose2D(float(p[0]), float(p[1]), 0.0), r
         if best_r <= at_anchor * (1.0 + cfg.peak_min_gain):
             return Pose2D(0.0, 0.0, 0.0), at_anchor
         return best, best_r
+
+    def _reachable(self, segs: FloatArray, p: FloatArray) -> bool:
+        """Are the straight drives anchor -> p and robot -> p clear of the model's walls?"""
+        clear = self.config.revisit.path_clearance_m
+        here = self._pose_in_anchor()
+        for a in (np.zeros(2), np.array([here.x, here.y])):
+            k = max(2, math.ceil(float(np.hypot(*(p - a))) / 0.05) + 1)
+            line = np.stack([np.linspace(a[0], p[0], k), np.linspace(a[1], p[1], k)], axis=1)
+            if point_segment_distance(line, segs).min() < clear:
+                return False
+        return True
 
     def _verify(self, model: LineModel) -> bool:
         """Do the points seen from the origin localize back onto it from offset guesses?"""
