@@ -410,6 +410,16 @@ class BuilderConfig:
             "the next one [m]"
         },
     )
+    vicinity_m: float = field(
+        default=4.0,
+        metadata={
+            "help": "no attempt while the robot is within this odometric distance of the last "
+            "island's origin: it is still within that island's reach (star legs 1.2 m plus the "
+            "sonar's dense range), so it is not lost whatever epsilon says (epsilon carries the "
+            "star's turning drift and passed E_min 4 m on, which put a second island just past "
+            "a junction whose mouth already had one) [m]"
+        },
+    )
     settled_go_m: float = field(
         default=1.0,
         metadata={
@@ -550,6 +560,7 @@ class BuilderConfig:
             "bound_floor",
             "quick_reject_fraction",
             "retry_distance_m",
+            "vicinity_m",
             "settled_go_m",
             "dismiss_fraction",
             "first_island_min_measure",
@@ -736,6 +747,7 @@ class _State(StrEnum):
     STAR = "star"
     RETURNING = "returning"  # back to the origin, facing theta 0, then hand back
     DOCKING = "docking"  # onto a recognised island's origin, then hand back
+    PROBING = "probing"  # to an origin past the star's legs: look around there, verify it
 
 
 class _LegPhase(StrEnum):
@@ -759,6 +771,21 @@ class _Dock:
     island: Island
     target: Pose2D  # the island origin in the odometry frame (estimated) [m, rad]
     looks_left: int
+    phase: _DockPhase = _DockPhase.GO
+    turned_rad: float = 0.0
+    prev_theta: float = 0.0
+    points: list[FloatArray] = field(default_factory=list)  # odometry frame [m]
+
+
+@dataclass
+class _Probe:
+    """An origin past the driven legs, checked on the spot before the island is accepted."""
+
+    model: LineModel  # the star's model in the anchor frame [m]
+    shift: Pose2D  # the candidate origin in the anchor frame
+    measure: float  # its normalized measure
+    fallback: Pose2D  # the best origin along the driven legs, if the check fails
+    fallback_measure: float
     phase: _DockPhase = _DockPhase.GO
     turned_rad: float = 0.0
     prev_theta: float = 0.0
@@ -792,6 +819,7 @@ class _Attempt:
     leg_length_m: float = 0.0
     legs_done: list[tuple[float, float]] = field(default_factory=list)
     ahead_free_m: float = 0.0  # nearest echo ahead of the anchor when the attempt started [m]
+    probe: _Probe | None = None
     best: float = 0.0
     best_type: ModelType = ModelType.LINE
     model: LineModel | None = None
@@ -852,6 +880,8 @@ class IslandBuilder:
         self.counts: dict[EventKind, int] = {k: 0 for k in EventKind}
         # Why refined revisit hypotheses were refused (diagnostics): reason -> count.
         self.revisit_refusals: dict[str, int] = {}
+        # Origins past the star's legs: checked on the spot and kept, or fallen back from.
+        self.probes: dict[str, int] = {"kept": 0, "fell_back": 0}
 
     # ----- inputs -----
 
@@ -908,6 +938,11 @@ class IslandBuilder:
             if self._dock.phase is _DockPhase.LOOK:
                 self._dock.points.append(pts)
             return
+        probe = self._attempt.probe if self._attempt is not None else None
+        if self._state is _State.PROBING and probe is not None:
+            if probe.phase is _DockPhase.LOOK:
+                probe.points.append(pts)
+            return
         self._recent.append((self._path_m, pts))
         while self._recent and self._recent[0][0] < self._path_m - self.config.quick_history_m:
             self._recent.popleft()
@@ -949,6 +984,8 @@ class IslandBuilder:
             self._maybe_attempt()
         if self._state is _State.STAR:
             v, w = self._star_step()
+        if self._state is _State.PROBING:
+            v, w = self._probe_step()
         if self._state is _State.RETURNING:
             v, w = self._return_step()
         if self._state is _State.DOCKING:
@@ -1006,6 +1043,8 @@ class IslandBuilder:
             return
         if self._path_m < self._retry_at_path_m or not self._follower_settled():
             return
+        if self._in_last_island_vicinity():
+            return
         assert self._odom is not None
         bound = eq3_bound(self.config, eps)
         pts = (
@@ -1040,6 +1079,15 @@ class IslandBuilder:
             return
         self._defer_prev, self._defer_m = None, 0.0
         self._start_attempt(first=False)
+
+    def _in_last_island_vicinity(self) -> bool:
+        """Is the robot within vicinity_m of the last island's origin (odometry)?"""
+        last = self._last_island
+        if last is None or last.id not in self._known or self._odom is None:
+            return False
+        origin = self._known[last.id][0]
+        dist = math.hypot(self._odom.x - origin.x, self._odom.y - origin.y)
+        return dist < self.config.vicinity_m
 
     def _start_attempt(self, first: bool) -> None:
         assert self._odom is not None and self._last_scan is not None
@@ -1181,14 +1229,26 @@ class IslandBuilder:
         if self.config.verify_localization and not att.first and not self._verify(model):
             self._dismiss(partial=False, reason=DismissReason.LOCALIZATION_CHECK)
             return
-        shift = Pose2D(0.0, 0.0, 0.0)  # the island origin in the anchor's frame
-        drive: tuple[StrategyPrimitive, ...] = ()
+        shift, r_peak = Pose2D(0.0, 0.0, 0.0), att.best  # the origin in the anchor's frame
         if self.config.origin_at_peak and not att.first and len(model) > 0:
-            shift, r_peak = self._peak_origin(model, att)
-            if shift.x != 0.0 or shift.y != 0.0:
-                model = LineModel(model.segments - np.array([shift.x, shift.y] * 2))
-                att.best = max(att.best, r_peak)
-                drive = _drive_onto_origin(Pose2D(-shift.x, -shift.y, 0.0), min_go_m=0.0)
+            shift, r_peak = self._peak_origin(model, att, ahead=False)
+            far, r_far = self._peak_origin(model, att, ahead=True)
+            if far != shift:  # past the driven legs: nothing was seen from there yet
+                att.probe = _Probe(model, far, r_far, shift, r_peak)
+                self._state = _State.PROBING
+                return
+        self._accept_at(model, shift, r_peak)
+
+    def _accept_at(self, model: LineModel, shift: Pose2D, r_peak: float) -> None:
+        """Accept the attempt's island with its origin at `shift` in the anchor frame, where
+        its model's normalized measure is r_peak."""
+        att = self._attempt
+        assert att is not None
+        drive: tuple[StrategyPrimitive, ...] = ()
+        if shift.x != 0.0 or shift.y != 0.0:
+            model = LineModel(model.segments - np.array([shift.x, shift.y] * 2))
+            att.best = max(att.best, r_peak)
+            drive = _drive_onto_origin(Pose2D(-shift.x, -shift.y, 0.0), min_go_m=0.0)
         origin = att.anchor.compose(shift)
         island = Island(
             id=len(self.islands),
@@ -1233,17 +1293,19 @@ class IslandBuilder:
         )
         self._state = _State.RETURNING
 
-    def _peak_origin(self, model: LineModel, att: _Attempt) -> tuple[Pose2D, float]:
-        """Where along the driven star legs the model's normalized measure peaks: (the origin
-        in the anchor frame, its measure); the anchor itself unless the peak beats it by
-        peak_min_gain."""
+    def _peak_origin(
+        self, model: LineModel, att: _Attempt, ahead: bool
+    ) -> tuple[Pose2D, float]:
+        """Where along the driven star legs (with `ahead`, also past the ahead leg up to
+        peak_ahead_m) the model's normalized measure peaks: (the origin in the anchor frame,
+        its measure); the anchor itself unless the peak beats it by peak_min_gain."""
         cfg = self.config
         _, at_anchor = normalized_measures(cfg, self._evaluate(model.segments, np.zeros(2)))
         best, best_r = Pose2D(0.0, 0.0, 0.0), at_anchor
         for bearing, length in att.legs_done:
             c, s = math.cos(bearing), math.sin(bearing)
             reach = length
-            if bearing == 0.0:
+            if ahead and bearing == 0.0:
                 reach = max(length, min(cfg.peak_ahead_m, att.ahead_free_m - cfg.star.clearance_m))
             for d in np.arange(cfg.peak_step_m, reach + 1e-9, cfg.peak_step_m):
                 p = np.array([d * c, d * s])
@@ -1266,6 +1328,43 @@ class IslandBuilder:
             if point_segment_distance(line, segs).min() < clear:
                 return False
         return True
+
+    def _probe_step(self) -> tuple[float, float]:
+        """Drive to the origin past the legs, face the anchor's heading, look around (a full
+        circle), then accept the island there if the look localizes in the model from offset
+        guesses (the new-island check), else at the best origin along the driven legs."""
+        att = self._attempt
+        assert att is not None and att.probe is not None and self._odom is not None
+        pr, sc = att.probe, self.config.star
+        target = att.anchor.compose(pr.shift)  # the candidate origin, odometry frame
+        rel = self._odom.relative_to(target)
+        if pr.phase is _DockPhase.GO:
+            cmd = self._drive_to_origin(rel)
+            if cmd is not None:
+                return cmd
+            pr.phase = _DockPhase.ALIGN
+        if pr.phase is _DockPhase.ALIGN:
+            err = wrap_angle(-rel.theta)
+            if abs(err) > math.radians(sc.heading_tol_deg):
+                return 0.0, self._turn_rate(err)
+            pr.phase, pr.turned_rad, pr.prev_theta, pr.points = (
+                _DockPhase.LOOK, 0.0, self._odom.theta, [])
+        pr.turned_rad += abs(wrap_angle(self._odom.theta - pr.prev_theta))
+        pr.prev_theta = self._odom.theta
+        if pr.turned_rad < 2.0 * math.pi:
+            return 0.0, sc.turn_rate_radps
+        pts = np.concatenate(pr.points, axis=0) if pr.points else np.zeros((0, 2))
+        shifted = LineModel(pr.model.segments - np.array([pr.shift.x, pr.shift.y] * 2))
+        there = math.hypot(rel.x, rel.y) <= self.config.revisit.path_clearance_m
+        ok = there and pts.shape[0] >= 3 and self._localizes_back(
+            shifted, _to_frame(pts, self._odom), rel)
+        self.probes["kept" if ok else "fell_back"] += 1
+        att.probe = None
+        if ok:
+            self._accept_at(pr.model, pr.shift, pr.measure)
+        else:
+            self._accept_at(pr.model, pr.fallback, pr.fallback_measure)
+        return 0.0, 0.0
 
     def _verify(self, model: LineModel) -> bool:
         """Do the points seen from the origin localize back onto it from offset guesses?"""
@@ -1373,8 +1472,9 @@ class IslandBuilder:
         gx, gy = np.meshgrid(ticks, ticks)
         inside = np.hypot(gx, gy) <= radius_m + 1e-9
         offs = np.stack([gx[inside], gy[inside]], axis=1)
-        m = math.floor(max_dth_rad / math.radians(rc.heading_step_deg) + 1e-9)
-        dths = np.arange(-m, m + 1) * math.radians(rc.heading_step_deg)
+        heading_step = math.radians(rc.heading_step_deg)
+        m = math.floor(max_dth_rad / heading_step + 1e-9)
+        dths = np.arange(-m, m + 1) * heading_step
         guesses: list[tuple[float, Pose2D]] = []
         for dth in dths:
             th = est.theta + float(dth)
@@ -1411,6 +1511,11 @@ class IslandBuilder:
                 continue
             if math.hypot(p.x - est.x, p.y - est.y) > radius_m:
                 self._refuse("outside_search_radius")
+                continue
+            if abs(wrap_angle(p.theta - est.theta)) > max_dth_rad + 2.0 * heading_step:
+                # The refinement turned the points far out of the heading window: a + junction
+                # fits itself turned by 90 deg (paper_fig4: 0.09 m residual, 92 % inliers).
+                self._refuse("outside_heading_window")
                 continue
             world = _from_frame(pts, p)
             inl = float(np.mean(point_segment_distance(world, segs).min(axis=1) <= rc.inlier_m))

@@ -31,7 +31,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from island_msgs_py.types import (
@@ -123,6 +123,14 @@ class NavigateConfig:
     search_heading_deg: float = field(
         default=8.0, metadata={"help": "guesses also at +- this heading offset [deg]"}
     )
+    max_turn_deg: float = field(
+        default=30.0,
+        metadata={
+            "help": "a fit that turned the points farther than this from the estimate's "
+            "heading is no candidate: a + junction fits itself turned by 90-180 deg "
+            "(paper_fig4: an arrival 'localized' 2 m and 120 deg off) [deg]"
+        },
+    )
     max_points: int = field(
         default=400, metadata={"help": "localization uses at most this many points [-]"}
     )
@@ -191,6 +199,7 @@ class NavigateConfig:
             "start_offset_deg",
             "search_radius_m",
             "search_heading_deg",
+            "max_turn_deg",
             "axis_search_step_m",
             "axis_search_min_constraint",
         ):
@@ -422,7 +431,8 @@ def localize_multi(
     """Localize from initial guesses around `estimate`; (best result, trusted).
 
     The best result is the converged one with the smallest residual (any result when none
-    converged); trusted = it converged with a residual below `max_residual_m`.
+    converged); trusted = it converged with a residual below `max_residual_m`. A fit whose
+    heading left the estimate's by more than `max_turn_deg` counts as not converged.
     """
     r = cfg.search_radius_m
     n = math.floor(r / cfg.search_step_m + 1e-9)
@@ -438,6 +448,9 @@ def localize_multi(
     for dx, dy, dth in guesses:
         init = Pose2D(estimate.x + dx, estimate.y + dy, wrap_angle(estimate.theta + dth))
         res = localize(island.model, points_robot, init, cfg.localize)
+        turned = abs(wrap_angle(res.pose.theta - estimate.theta)) > math.radians(cfg.max_turn_deg)
+        if turned and res.converged:
+            res = replace(res, converged=False)
         if best is None or (res.converged, -res.residual_m) > (best.converged, -best.residual_m):
             best = res
         if res.converged and res.residual_m <= cfg.max_residual_m:
