@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -240,3 +241,45 @@ def test_the_unconstrained_axis_of_a_corridor_fit_is_the_corridor() -> None:
     assert abs(math.sin(axis)) < 0.05  # along x, either sign
     with pytest.raises(NavigateError, match="axis_search_steps"):
         NavigateConfig(axis_search_steps=-1)
+
+
+def test_a_fit_turned_far_from_the_estimate_is_not_trusted(monkeypatch: pytest.MonkeyPatch
+                                                           ) -> None:
+    """localize_multi on the L world's corner island: the look-around's points localize
+    (trusted); when every refinement comes back turned 120 deg from the estimate (paper_fig4:
+    an arrival at a + junction 'localized' 2 m and 120 deg off), none is a candidate unless
+    max_turn_deg allows it."""
+    import island_mapping.core.navigate as nav
+
+    world = l_world()
+    origin = ORIGINS[1]
+    island = Island(1, model_at(world, origin), ModelType.LINE, 1.0, 0.0, origin_truth=origin)
+    sonar = SonarModel(SonarConfig(), seed=3)
+    rng = np.random.default_rng(3)
+    pts = []
+    for k in range(8):  # a look-around: eight scans turned by 45 deg, in the island frame
+        th = k * math.pi / 4
+        pose = Pose2D(origin.x, origin.y, origin.theta + th)
+        r = sonar.scan(world, pose, rng)
+        a = sonar.angles_rad + th
+        ok = np.isfinite(r)
+        pts.append(np.stack([r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])], axis=1))
+    points = np.concatenate(pts, axis=0)
+    cfg = NavigateConfig()
+    res, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0), cfg)
+    assert trusted and math.hypot(res.pose.x, res.pose.y) < 0.1
+
+    real = nav.localize
+
+    def turned(*args: object) -> object:
+        r = real(*args)  # type: ignore[arg-type]
+        return replace(r, pose=Pose2D(r.pose.x, r.pose.y, r.pose.theta + math.radians(120)))
+
+    monkeypatch.setattr(nav, "localize", turned)
+    _, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0), cfg)
+    assert not trusted
+    _, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0),
+                                    replace(cfg, max_turn_deg=180.0))
+    assert trusted
+    with pytest.raises(NavigateError, match=r"NavigateConfig\.max_turn_deg"):
+        NavigateConfig(max_turn_deg=-1.0)
