@@ -827,10 +827,12 @@ class _ProbeFails(IslandBuilder):
     """The look at an origin past the legs does not localize (paper_fig4: an origin moved
     1.8 m on to a door whose smeared jambs the model over-rated was not localizable)."""
 
-    def _localizes_back(self, model: LineModel, points_robot: np.ndarray, at: Pose2D) -> bool:
+    def _localizes_back(
+        self, model: LineModel, points_robot: np.ndarray, at: Pose2D, turn_rad: float = 0.0
+    ) -> bool:
         if self.state == "probing":
             return False
-        return super()._localizes_back(model, points_robot, at)
+        return super()._localizes_back(model, points_robot, at, turn_rad)
 
 
 def test_an_origin_past_the_legs_that_does_not_localize_falls_back_to_the_legs_peak() -> None:

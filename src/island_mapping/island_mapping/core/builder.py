@@ -513,6 +513,21 @@ class BuilderConfig:
     verify_tol_m: float = field(
         default=0.1, metadata={"help": "a verification localization must end this close [m]"}
     )
+    probe_turn_deg: float = field(
+        default=8.0,
+        metadata={
+            "help": "the check of an origin past the legs also starts from guesses turned by "
+            "+- this, as navigation's localization does (navigation.search_heading_deg) [deg]"
+        },
+    )
+    probe_agree_deg: float = field(
+        default=4.0,
+        metadata={
+            "help": "and all its fits must agree in heading within this (an origin moved 1.6 m "
+            "on to the end of a corridor passed the position test, then arrivals there "
+            "localized 10-14 deg off in 5 of 20 routes) [deg]"
+        },
+    )
     centre_radius_m: float = field(
         default=0.1,
         metadata={
@@ -566,6 +581,8 @@ class BuilderConfig:
             "first_island_min_measure",
             "peak_min_gain",
             "peak_ahead_m",
+            "probe_turn_deg",
+            "probe_agree_deg",
         ):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
@@ -1357,7 +1374,7 @@ class IslandBuilder:
         shifted = LineModel(pr.model.segments - np.array([pr.shift.x, pr.shift.y] * 2))
         there = math.hypot(rel.x, rel.y) <= self.config.revisit.path_clearance_m
         ok = there and pts.shape[0] >= 3 and self._localizes_back(
-            shifted, _to_frame(pts, self._odom), rel)
+            shifted, _to_frame(pts, self._odom), rel, math.radians(self.config.probe_turn_deg))
         self.probes["kept" if ok else "fell_back"] += 1
         att.probe = None
         if ok:
@@ -1373,19 +1390,29 @@ class IslandBuilder:
         pts = np.concatenate(att.centre_points, axis=0) if att.centre_points else np.zeros((0, 2))
         return self._localizes_back(model, pts, Pose2D(0.0, 0.0, 0.0))
 
-    def _localizes_back(self, model: LineModel, points_robot: FloatArray, at: Pose2D) -> bool:
+    def _localizes_back(
+        self, model: LineModel, points_robot: FloatArray, at: Pose2D, turn_rad: float = 0.0
+    ) -> bool:
         """The localization check: from `at` and from guesses `verify_offset_m` off it in four
-        directions, do the robot-frame points converge within `verify_tol_m` of `at`?"""
+        directions, do the robot-frame points converge within `verify_tol_m` of `at`? With
+        turn_rad > 0 the guesses are also turned by +-turn_rad, and the fits' headings must
+        agree within probe_agree_deg (a model that fits turned as well passes the position
+        test alone)."""
         cfg = self.config
         d = cfg.verify_offset_m
-        for gx, gy in ((0.0, 0.0), (d, 0.0), (-d, 0.0), (0.0, d), (0.0, -d)):
-            guess = Pose2D(at.x + gx, at.y + gy, at.theta)
-            res = localize(model, points_robot, guess, cfg.localize)
-            if not res.converged or math.hypot(res.pose.x - at.x, res.pose.y - at.y) > (
-                cfg.verify_tol_m
-            ):
-                return False
-        return True
+        turns = (0.0, turn_rad, -turn_rad) if turn_rad > 0.0 else (0.0,)
+        headings: list[float] = []
+        for dth in turns:
+            for gx, gy in ((0.0, 0.0), (d, 0.0), (-d, 0.0), (0.0, d), (0.0, -d)):
+                guess = Pose2D(at.x + gx, at.y + gy, at.theta + dth)
+                res = localize(model, points_robot, guess, cfg.localize)
+                if not res.converged or math.hypot(res.pose.x - at.x, res.pose.y - at.y) > (
+                    cfg.verify_tol_m
+                ):
+                    return False
+                headings.append(wrap_angle(res.pose.theta - at.theta))
+        spread = max(headings) - min(headings)
+        return turn_rad <= 0.0 or spread <= math.radians(cfg.probe_agree_deg)
 
     # ----- revisits -----
 
