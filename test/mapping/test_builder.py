@@ -872,3 +872,26 @@ def test_attempts_wait_until_the_follower_has_settled_after_a_turn(record: str,
     off = IslandBuilder(BuilderConfig(settled_go_m=0.0))
     off.set_strategy(ControlStrategy.parse(record))
     assert off._follower_settled()
+
+
+def test_the_probe_check_refuses_a_model_that_fits_turned_as_well() -> None:
+    """A round room (a 72-gon, 2 m radius) pins the position but not the heading: the new-island
+    check passes on position alone; with guesses turned +-8 deg (the probe's check) the fits
+    end turned with them and disagree, so it refuses. A square room passes both."""
+    b = IslandBuilder(BuilderConfig())
+
+    def room(corners: int, radius_m: float) -> tuple[LineModel, np.ndarray]:
+        a = np.arange(corners + 1) * 2.0 * math.pi / corners + math.pi / corners
+        xy = radius_m * np.stack([np.cos(a), np.sin(a)], axis=1)
+        segs = np.concatenate([xy[:-1], xy[1:]], axis=1)
+        t = np.linspace(0.05, 0.95, 12)
+        pts = np.concatenate([s[:2] + t[:, None] * (s[2:] - s[:2]) for s in segs], axis=0)
+        return LineModel(segs), pts
+
+    turn = math.radians(BuilderConfig().probe_turn_deg)
+    round_model, round_pts = room(72, 2.0)
+    at = Pose2D(0.0, 0.0, 0.0)
+    assert b._localizes_back(round_model, round_pts, at)
+    assert not b._localizes_back(round_model, round_pts, at, turn)
+    square_model, square_pts = room(4, 2.0)
+    assert b._localizes_back(square_model, square_pts, at, turn)
