@@ -1358,21 +1358,14 @@ class IslandBuilder:
         pr, sc = att.probe, self.config.star
         target = att.anchor.compose(pr.shift)  # the candidate origin, odometry frame
         rel = self._odom.relative_to(target)
-        if pr.phase is _DockPhase.GO:
-            cmd = self._drive_to_origin(rel)
-            if cmd is not None:
-                return cmd
-            pr.phase = _DockPhase.ALIGN
+        cmd = self._go_align(pr, rel, math.radians(sc.heading_tol_deg))
+        if cmd is not None:
+            return cmd
         if pr.phase is _DockPhase.ALIGN:
-            err = wrap_angle(-rel.theta)
-            if abs(err) > math.radians(sc.heading_tol_deg):
-                return 0.0, self._turn_rate(err)
-            pr.phase, pr.turned_rad, pr.prev_theta, pr.points = (
-                _DockPhase.LOOK, 0.0, self._odom.theta, [])
-        pr.turned_rad += abs(wrap_angle(self._odom.theta - pr.prev_theta))
-        pr.prev_theta = self._odom.theta
-        if pr.turned_rad < 2.0 * math.pi:
-            return 0.0, sc.turn_rate_radps
+            self._start_look(pr)
+        cmd = self._look_step(pr)
+        if cmd is not None:
+            return cmd
         pts = np.concatenate(pr.points, axis=0) if pr.points else np.zeros((0, 2))
         shifted = LineModel(pr.model.segments - np.array([pr.shift.x, pr.shift.y] * 2))
         there = math.hypot(rel.x, rel.y) <= self.config.revisit.path_clearance_m
@@ -1731,24 +1724,16 @@ class IslandBuilder:
         assert dock is not None and self._odom is not None
         sc, rc = self.config.star, self.config.revisit
         rel = self._odom.relative_to(dock.target)  # the robot in the island frame
-        if dock.phase is _DockPhase.GO:
-            cmd = self._drive_to_origin(rel)
-            if cmd is not None:
-                return cmd
-            dock.phase = _DockPhase.ALIGN
+        cmd = self._go_align(dock, rel, math.radians(min(sc.heading_tol_deg, rc.dock_tol_deg)))
+        if cmd is not None:
+            return cmd
         if dock.phase is _DockPhase.ALIGN:
-            err = wrap_angle(-rel.theta)
-            if abs(err) > math.radians(min(sc.heading_tol_deg, rc.dock_tol_deg)):
-                return 0.0, self._turn_rate(err)
             if dock.looks_left <= 0:
                 return self._finish_dock()
-            dock.phase = _DockPhase.LOOK
-            dock.turned_rad, dock.prev_theta, dock.points = 0.0, self._odom.theta, []
-        # LOOK: a full circle in place, then localize from the odometric estimate.
-        dock.turned_rad += abs(wrap_angle(self._odom.theta - dock.prev_theta))
-        dock.prev_theta = self._odom.theta
-        if dock.turned_rad < 2.0 * math.pi:
-            return 0.0, sc.turn_rate_radps
+            self._start_look(dock)
+        cmd = self._look_step(dock)  # a full circle, then localize from the odometric estimate
+        if cmd is not None:
+            return cmd
         dock.looks_left -= 1
         pts = np.concatenate(dock.points, axis=0) if dock.points else np.zeros((0, 2))
         res = localize(dock.island.model, _to_frame(pts, self._odom), rel, self.config.localize)
@@ -1763,6 +1748,35 @@ class IslandBuilder:
             dock.looks_left = 0  # cannot do better than odometry
         dock.phase = _DockPhase.GO
         return 0.0, 0.0
+
+    def _go_align(self, look: _Dock | _Probe, rel: Pose2D, tol_rad: float
+                  ) -> tuple[float, float] | None:
+        """GO onto the origin (`rel`: the robot in its frame), then ALIGN with its heading
+        within tol_rad: the command, or None once aligned (phase ALIGN) or looking (LOOK)."""
+        if look.phase is _DockPhase.GO:
+            cmd = self._drive_to_origin(rel)
+            if cmd is not None:
+                return cmd
+            look.phase = _DockPhase.ALIGN
+        if look.phase is _DockPhase.ALIGN:
+            err = wrap_angle(-rel.theta)
+            if abs(err) > tol_rad:
+                return 0.0, self._turn_rate(err)
+        return None
+
+    def _start_look(self, look: _Dock | _Probe) -> None:
+        assert self._odom is not None
+        look.phase, look.turned_rad, look.prev_theta, look.points = (
+            _DockPhase.LOOK, 0.0, self._odom.theta, [])
+
+    def _look_step(self, look: _Dock | _Probe) -> tuple[float, float] | None:
+        """LOOK: turn a full circle in place (scans collect in look.points); None once done."""
+        assert self._odom is not None
+        look.turned_rad += abs(wrap_angle(self._odom.theta - look.prev_theta))
+        look.prev_theta = self._odom.theta
+        if look.turned_rad < 2.0 * math.pi:
+            return 0.0, self.config.star.turn_rate_radps
+        return None
 
     def _turn_rate(self, err_rad: float) -> float:
         sc = self.config.star
