@@ -1252,7 +1252,11 @@ class IslandBuilder:
         shift, r_peak = Pose2D(0.0, 0.0, 0.0), att.best  # the origin in the anchor's frame
         if self.config.origin_at_peak and not att.first and len(model) > 0:
             shift, r_peak = self._peak_origin(model, att, ahead=False)
-            far, r_far = self._peak_origin(model, att, ahead=True)
+            far, r_far = (
+                self._peak_origin(model, att, ahead=True)
+                if self.config.peak_ahead_m > 0.0
+                else (shift, r_peak)
+            )
             if far != shift:  # past the driven legs: nothing was seen from there yet
                 att.probe = _Probe(model, far, r_far, shift, r_peak)
                 self._state = _State.PROBING
