@@ -1344,14 +1344,10 @@ class IslandBuilder:
 
     def _reachable(self, segs: FloatArray, p: FloatArray) -> bool:
         """Are the straight drives anchor -> p and robot -> p clear of the model's walls?"""
-        clear = self.config.revisit.path_clearance_m
         here = self._pose_in_anchor()
-        for a in (np.zeros(2), np.array([here.x, here.y])):
-            k = max(2, math.ceil(float(np.hypot(*(p - a))) / 0.05) + 1)
-            line = np.stack([np.linspace(a[0], p[0], k), np.linspace(a[1], p[1], k)], axis=1)
-            if point_segment_distance(line, segs).min() < clear:
-                return False
-        return True
+        return all(
+            self._drive_clear(segs, a, p) for a in (np.zeros(2), np.array([here.x, here.y]))
+        )
 
     def _probe_step(self) -> tuple[float, float]:
         """Drive to the origin past the legs, face the anchor's heading, look around (a full
@@ -1635,8 +1631,12 @@ class IslandBuilder:
 
     def _path_clear(self, segs: FloatArray, p: Pose2D) -> bool:
         """Is the straight path from p to the island origin clear of the model's walls?"""
-        k = max(2, math.ceil(math.hypot(p.x, p.y) / 0.05) + 1)
-        line = np.stack([np.linspace(p.x, 0.0, k), np.linspace(p.y, 0.0, k)], axis=1)
+        return self._drive_clear(segs, np.array([p.x, p.y]), np.zeros(2))
+
+    def _drive_clear(self, segs: FloatArray, a: FloatArray, b: FloatArray) -> bool:
+        """Does the straight drive a -> b [m] keep path_clearance_m from the walls `segs`?"""
+        k = max(2, math.ceil(float(np.hypot(*(b - a))) / 0.05) + 1)
+        line = np.stack([np.linspace(a[0], b[0], k), np.linspace(a[1], b[1], k)], axis=1)
         clear = self.config.revisit.path_clearance_m
         return bool(point_segment_distance(line, segs).min() >= clear)
 
