@@ -30,6 +30,7 @@ from island_mapping.core.builder import (
     normalized_measures,
 )
 from island_mapping.core.graph import strategy_displacement
+from island_mapping.core.lines import point_segment_distance
 from island_mapping.core.placement import PlaceKind, classify_place
 from island_msgs_py.types import (
     ControlStrategy,
@@ -785,14 +786,16 @@ def cross_world() -> World:
     return World(np.array(segs), "cross")
 
 
-def _island_at_crossing(ahead_m: float, builder_cls: type[IslandBuilder] = IslandBuilder
+def _island_at_crossing(ahead_m: float, builder_cls: type[IslandBuilder] = IslandBuilder,
+                        stop_x: float = -3.0, climbs: int = 1,
                         ) -> tuple[Island, Pose2D, Pose2D, Run]:
-    """The follower stalls in the corridor 2 m before a crossing (a low bound floor lets
-    eq. 3 pass there): (the island, the attempt's anchor, the accepted origin, the run)."""
-    cfg = BuilderConfig(peak_ahead_m=ahead_m, bound_floor=0.05, build_first_island=False,
-                        revisit=RevisitConfig(enabled=False))
+    """The follower stalls in the corridor at stop_x, 1.75 m before a crossing's mouth (a low
+    bound floor lets eq. 3 pass there): (the island, the attempt's anchor, the accepted
+    origin, the run)."""
+    cfg = BuilderConfig(peak_ahead_m=ahead_m, probe_climbs=climbs, bound_floor=0.05,
+                        build_first_island=False, revisit=RevisitConfig(enabled=False))
     run = run_builder(cross_world(), Pose2D(-16.0, 0.0, 0.0), builder_cls(cfg), 120.0,
-                      lambda p: 0.2 * p, stop_x=-3.0)
+                      lambda p: 0.2 * p, stop_x=stop_x)
     acc = [e for e in run.events if e.kind is EventKind.ISLAND_ACCEPTED]
     start = next(e for e in run.events if e.kind is EventKind.ATTEMPT_STARTED)
     assert len(acc) == 1 and acc[0].island is not None and start.anchor_odom is not None
@@ -844,6 +847,72 @@ def test_an_origin_past_the_legs_that_does_not_localize_falls_back_to_the_legs_p
     back = next(e for e in run.events if e.kind is EventKind.HANDED_BACK)
     rel = back.odom_pose.relative_to(origin)
     assert math.hypot(rel.x, rel.y) < 0.1 and run.robot.collisions == 0
+
+
+class _KeepsStarModel(IslandBuilder):
+    """Remembers the star's own model (in the anchor frame) when the first probe starts."""
+
+    star_model: LineModel | None = None
+
+    def _probe_step(self) -> tuple[float, float]:
+        att = self._attempt
+        if self.star_model is None and att is not None and att.probe is not None:
+            self.star_model = att.probe.model
+        return super()._probe_step()
+
+
+def _look_points(world: World, at: Pose2D, seed: int) -> FloatArray:
+    """Sonar echoes of a full turn in place at `at` (every 6 deg), in at's frame [m]."""
+    sonar, rng = SonarModel(SonarConfig()), np.random.default_rng(seed)
+    pts = []
+    for a in np.arange(0.0, 2.0 * math.pi, math.radians(6.0)):
+        r = sonar.scan(world, Pose2D(at.x, at.y, at.theta + a), rng)
+        ok = np.isfinite(r)
+        ang = sonar.angles_rad[ok] + a
+        pts.append(np.stack([r[ok] * np.cos(ang), r[ok] * np.sin(ang)], axis=1))
+    return np.concatenate(pts, axis=0)
+
+
+def test_a_kept_probe_adds_its_look_to_the_model() -> None:
+    """The star saw the crossing from 1.75 m back; the island's model also holds the look
+    from the probed origin, so it explains what a robot sees there better than the star's
+    model alone (moved into the island frame)."""
+    island, anchor, origin, run = _island_at_crossing(3.0, _KeepsStarModel)
+    builder = run.builder
+    assert isinstance(builder, _KeepsStarModel) and builder.star_model is not None
+    assert island.origin_truth is not None
+    shift = origin.relative_to(anchor)
+    star = builder.star_model.segments - np.array([shift.x, shift.y] * 2)
+    look = _look_points(cross_world(), island.origin_truth, seed=3)
+    near_star = float(np.mean(point_segment_distance(look, star).min(axis=1) < 0.15))
+    near_kept = float(np.mean(
+        point_segment_distance(look, island.model.segments).min(axis=1) < 0.15))
+    assert near_kept >= 0.93 and near_kept > near_star + 0.03, (near_kept, near_star)
+
+
+def test_a_probe_that_passes_climbs_on_to_the_peak_its_look_reveals() -> None:
+    """Stalled 2.75 m before the mouth, the star's model ends short of the crossing: the first
+    probe stops in the plain corridor. Its look completes the model, whose peak lies further
+    on: a second probe takes the origin to the crossing's mouth (probe_climbs 1, the
+    default); with 0 it stays in the corridor."""
+    world = cross_world()
+    once, anchor0, _, run0 = _island_at_crossing(3.0, stop_x=-4.0, climbs=0)
+    twice, anchor, origin, run = _island_at_crossing(3.0, stop_x=-4.0, climbs=1)
+    assert anchor == anchor0
+    assert run0.builder.probes == {"kept": 1, "fell_back": 0}
+    assert run.builder.probes == {"kept": 2, "fell_back": 0}
+    assert once.origin_truth is not None and twice.origin_truth is not None
+    assert twice.origin_truth.x > once.origin_truth.x + 0.5
+    segs = world.segments
+    assert classify_place(segs, once.origin_truth.x, once.origin_truth.y) is (
+        PlaceKind.PLAIN_HALLWAY)
+    assert classify_place(segs, twice.origin_truth.x, twice.origin_truth.y) is (
+        PlaceKind.FEATURE)
+    back = next(e for e in run.events if e.kind is EventKind.HANDED_BACK)
+    rel = back.odom_pose.relative_to(origin)
+    assert math.hypot(rel.x, rel.y) < 0.1 and run.robot.collisions == 0
+    with pytest.raises(BuilderError, match=r"BuilderConfig\.probe_climbs"):
+        BuilderConfig(probe_climbs=-1)
 
 
 def test_bad_revisit_config_names_the_field() -> None:
