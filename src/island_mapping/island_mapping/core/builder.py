@@ -483,7 +483,7 @@ class BuilderConfig:
         default=0.2, metadata={"help": "spacing of the candidate origins along the legs [m]"}
     )
     peak_ahead_m: float = field(
-        default=0.0,
+        default=3.0,
         metadata={
             "help": "also search for the peak beyond the ahead leg, along the arrival heading, "
             "up to this far from the anchor (within the anchor's free range ahead, the drives "
