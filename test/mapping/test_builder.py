@@ -620,6 +620,37 @@ def test_a_known_island_whose_model_does_not_fit_is_not_recognised() -> None:
     assert any(e.anchor_odom is not None and e.anchor_odom.x > -6.0 for e in starts[2:])
 
 
+@pytest.mark.parametrize("offset_m", [2.0, 6.0])
+def test_a_look_alike_island_that_may_be_here_blocks_the_recognition(offset_m: float) -> None:
+    """When the robot turns back, a second island with island 0's very model is made known
+    offset_m north of island 0's origin (a look-alike place: doors repeat along a corridor).
+    At 2 m it lies outside the one-sigma window the recognition searches (sigma about 0.8 m
+    on return) but within rival_sigmas (3): it fits there too, so the recognition of island
+    0 is refused as `look_alike`; without the check (rival_sigmas 0), or with the look-alike
+    6 m off (beyond 3 sigmas plus max_dock_m), island 0 is recognised as before."""
+
+    def look_alike(b: IslandBuilder) -> None:
+        i0 = b.islands[0]
+        origin, cov = b._known[0]
+        b.islands.append(replace(i0, id=1, origin_truth=None))
+        b._known[1] = (origin.compose(Pose2D(0.0, offset_m, 0.0)), cov.copy())
+
+    def revisits(rival_sigmas: float) -> tuple[list[BuilderEvent], IslandBuilder]:
+        b = IslandBuilder(BuilderConfig(revisit=RevisitConfig(rival_sigmas=rival_sigmas)))
+        run = run_there_and_back(b, 150.0, tamper=look_alike)
+        return [e for e in run.events if e.kind is EventKind.ISLAND_REVISITED], b
+
+    unchecked, _ = revisits(0.0)
+    assert [e.revisited_island_id for e in unchecked] == [0]
+    checked, b = revisits(RevisitConfig().rival_sigmas)
+    if offset_m < 3.0:
+        assert checked == [], [e.revisited_island_id for e in checked]
+        assert b.revisit_refusals.get("look_alike", 0) > 0, b.revisit_refusals
+    else:
+        assert [e.revisited_island_id for e in checked] == [0]
+        assert "look_alike" not in b.revisit_refusals
+
+
 def test_a_recognition_turned_out_of_the_heading_window_is_refused(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:

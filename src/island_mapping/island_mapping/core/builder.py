@@ -39,7 +39,7 @@ import bisect
 import heapq
 import math
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -238,6 +238,26 @@ class RevisitConfig:
             "this (the model fits at distinct places) [m]"
         },
     )
+    rival_sigmas: float = field(
+        default=3.0,
+        metadata={
+            "help": "before a recognition is accepted, every other known island that may be "
+            "where the robot is (its odometric estimate within this many sigmas plus "
+            "max_dock_m) is searched too, over this many sigmas (within rival_max_m and "
+            "star_search_max_deg); if one also fits, the place is a look-alike and the "
+            "recognition is refused (0 = no such check) [-]"
+        },
+    )
+    rival_max_m: float = field(
+        default=12.0,
+        metadata={
+            "help": "largest position search radius of that check; its guess grid is "
+            "radius / star_search_cells, at most rival_step_m [m]"
+        },
+    )
+    rival_step_m: float = field(
+        default=0.6, metadata={"help": "largest spacing of the rival search's guesses [m]"}
+    )
     max_dock_m: float = field(
         default=3.0,
         metadata={"help": "the recognised island's origin must be this close to the robot [m]"},
@@ -343,6 +363,8 @@ class RevisitConfig:
             "star_max_residual_m",
             "star_search_max_m",
             "star_search_max_deg",
+            "rival_max_m",
+            "rival_step_m",
         ):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
@@ -350,7 +372,7 @@ class RevisitConfig:
                     f"RevisitConfig.{name}: expected a finite number > 0, got {v!r}"
                 )
         for name in ("search_max_deg", "path_clearance_m", "min_inlier_fraction", "min_loop_m",
-                     "min_constraint"):
+                     "min_constraint", "rival_sigmas"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise BuilderError(
@@ -1473,7 +1495,9 @@ class IslandBuilder:
         ones are refined by localization. Accepted: converged, RMS residual <= max_residual_m,
         inlier fraction >= min_inlier_fraction, within the search radius of the estimate, the
         origin within max_dock_m over a straight path clear of the model's walls, and the
-        new-island localization check from there. The smallest residual wins.
+        new-island localization check from there. The smallest residual wins, unless another
+        known island that may be where the robot is (rival_sigmas) fits the points too: then
+        the place is a look-alike and nothing is recognised.
         """
         rc = self.config.revisit
         if not rc.enabled or not self._known or self._odom is None or not self._revisit_recent:
@@ -1493,15 +1517,7 @@ class IslandBuilder:
         rc = self.config.revisit
         islands = {i.id: i for i in self.islands}
         best: Recognition | None = None
-        last = self._last_island
-        just_left = self._path_m - self._island_path_start_m < rc.min_loop_m
-        for iid in sorted(self._known):
-            island = islands.get(iid)
-            if island is None or len(island.model) == 0:
-                continue
-            if last is not None and iid == last.id and just_left:
-                continue
-            origin, sig_m, sig_th = min(self._estimates(iid), key=lambda e: e[1])
+        for _iid, island, origin, sig_m, sig_th in self._candidates(islands):
             sigmas = rc.star_search_sigmas if star else rc.search_sigmas
             radius = max(sigmas * sig_m, rc.search_min_m)
             max_dth = sigmas * sig_th
@@ -1525,7 +1541,59 @@ class IslandBuilder:
             found = self._search_island(island, pts, est, radius, max_dth, step, max_res)
             if found is not None and (best is None or found.residual_m < best.residual_m):
                 best = found
+        if best is not None and self._rival_fits(islands, pts, at, best.island_id, star):
+            self._refuse("look_alike")
+            return None
         return best
+
+    def _candidates(
+        self, islands: Mapping[int, Island]
+    ) -> Iterator[tuple[int, Island, Pose2D, float, float]]:
+        """Known islands a recognition may match, with their best odometric origin estimate
+        and its (position [m], heading [rad]) sigmas: not the island just left."""
+        rc = self.config.revisit
+        last = self._last_island
+        just_left = self._path_m - self._island_path_start_m < rc.min_loop_m
+        for iid in sorted(self._known):
+            island = islands.get(iid)
+            if island is None or len(island.model) == 0:
+                continue
+            if last is not None and iid == last.id and just_left:
+                continue
+            origin, sig_m, sig_th = min(self._estimates(iid), key=lambda e: e[1])
+            yield iid, island, origin, sig_m, sig_th
+
+    def _rival_fits(
+        self, islands: Mapping[int, Island], pts: FloatArray, at: Pose2D, chosen: int,
+        star: bool,
+    ) -> bool:
+        """Does another known island that may be here (rival_sigmas) fit the points too?
+
+        Offline paper_fig4 seed 3: after a loop the odometry was 7.4 m and 26 deg off (2
+        sigmas); the one-sigma window around the door island held the south-west corner the
+        robot stood at, which fitted it (0.13 m, 83 % inliers), while the corner's own island
+        was outside its window. Its wide search finds it."""
+        rc = self.config.revisit
+        k = rc.rival_sigmas
+        if k <= 0:
+            return False
+        max_res = rc.star_max_residual_m if star else rc.max_residual_m
+        counts = dict(self.revisit_refusals)  # a rival's failed fits are not refusals
+        try:
+            for iid, island, origin, sig_m, sig_th in self._candidates(islands):
+                est = at.relative_to(origin)
+                if iid == chosen or math.hypot(est.x, est.y) > k * sig_m + rc.max_dock_m:
+                    continue
+                radius = min(max(k * sig_m, rc.search_min_m), rc.rival_max_m)
+                max_dth = min(k * sig_th, math.radians(rc.star_search_max_deg))
+                step = min(max(rc.search_step_m, radius / rc.star_search_cells),
+                           rc.rival_step_m)
+                if self._search_island(island, pts, est, radius, max_dth, step,
+                                       max_res) is not None:
+                    return True
+            return False
+        finally:
+            self.revisit_refusals = counts
 
     def _search_island(
         self,
