@@ -11,6 +11,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 from island_mapping.core.builder import (
     BuilderConfig,
@@ -31,6 +32,7 @@ from island_mapping.core.builder import (
 )
 from island_mapping.core.graph import strategy_displacement
 from island_mapping.core.lines import point_segment_distance
+from island_mapping.core.localize import localize
 from island_mapping.core.placement import PlaceKind, classify_place
 from island_msgs_py.types import (
     ControlStrategy,
@@ -818,7 +820,7 @@ def cross_world() -> World:
 
 
 def _island_at_crossing(ahead_m: float, builder_cls: type[IslandBuilder] = IslandBuilder,
-                        stop_x: float = -3.0, climbs: int = 1,
+                        stop_x: float = -3.0, climbs: int = BuilderConfig().probe_climbs,
                         ) -> tuple[Island, Pose2D, Pose2D, Run]:
     """The follower stalls in the corridor at stop_x, 1.75 m before a crossing's mouth (a low
     bound floor lets eq. 3 pass there): (the island, the attempt's anchor, the accepted
@@ -855,6 +857,42 @@ def test_the_peak_search_reaches_past_the_ahead_leg_into_the_junction() -> None:
     back = next(e for e in run.events if e.kind is EventKind.HANDED_BACK)
     rel = back.odom_pose.relative_to(origin)
     assert math.hypot(rel.x, rel.y) < 0.1 and run.robot.collisions == 0
+
+
+def test_the_peak_search_also_goes_back_into_the_junction_the_robot_left() -> None:
+    """The robot leaves a crossing eastwards and epsilon passes E_min 1.85 m past its mouth
+    (paper_fig4: an island 2.6 m past the middle crossing, heading away from it). The back
+    leg's peak stays in the plain corridor; with the straight path the follower reported
+    (`Go 180`: free space behind the anchor) the search goes on back along it, and the
+    probed origin lands in the crossing's mouth. Without a report, or with peak_behind off,
+    nothing behind the back leg is searched."""
+    world = cross_world()
+
+    def island(ahead_m: float, strategy: str | None, behind: bool = True
+               ) -> tuple[Island, IslandBuilder]:
+        b = IslandBuilder(BuilderConfig(peak_ahead_m=ahead_m, peak_behind=behind,
+                                        bound_floor=0.05, build_first_island=False,
+                                        revisit=RevisitConfig(enabled=False)))
+        if strategy is not None:
+            b.set_strategy(ControlStrategy.parse(strategy))
+        run = run_builder(world, Pose2D(1.3, 0.0, 0.0), b, 120.0, lambda p: 0.6 * p,
+                          stop_x=3.0)
+        acc = [e for e in run.events if e.kind is EventKind.ISLAND_ACCEPTED]
+        assert len(acc) == 1 and acc[0].island is not None and run.robot.collisions == 0
+        return acc[0].island, b
+
+    legs, _ = island(0.0, "Go 180")
+    unreported, b0 = island(3.0, None)
+    off, _ = island(3.0, "Go 180", behind=False)
+    back, b1 = island(3.0, "Go 180")
+    assert b0.probes == {"kept": 0, "fell_back": 0} and b1.probes["kept"] == 1
+    assert legs.origin_truth is not None and back.origin_truth is not None
+    assert unreported.origin_truth == legs.origin_truth == off.origin_truth
+    assert back.origin_truth.x < legs.origin_truth.x - 0.5
+    segs = world.segments
+    assert classify_place(segs, legs.origin_truth.x, legs.origin_truth.y) is (
+        PlaceKind.PLAIN_HALLWAY)
+    assert classify_place(segs, back.origin_truth.x, back.origin_truth.y) is PlaceKind.FEATURE
 
 
 class _ProbeFails(IslandBuilder):
@@ -921,11 +959,44 @@ def test_a_kept_probe_adds_its_look_to_the_model() -> None:
     assert near_kept >= 0.93 and near_kept > near_star + 0.03, (near_kept, near_star)
 
 
+class _TurnsWhileProbing(IslandBuilder):
+    """Odometry turns 5 deg while the robot drives to and looks around a probed origin (each
+    full circle of a star adds heading noise: paper_fig4 island models carry 0-8 deg)."""
+
+    def on_odometry(self, t_s: float, odom_pose: Pose2D, cov3x3: npt.ArrayLike) -> None:
+        if self.state == "probing":
+            odom_pose = Pose2D(odom_pose.x, odom_pose.y, odom_pose.theta + math.radians(5.0))
+        super().on_odometry(t_s, odom_pose, cov3x3)
+
+
+def test_the_probe_look_is_registered_onto_the_model_not_placed_by_odometry(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The look a kept probe adds is placed where it localizes in the star's model, so odometry
+    that turned meanwhile does not turn the island's walls: a fresh look at the island's true
+    origin then fits at the frame's heading (within 1.5 deg); placed by odometry instead, the
+    model is turned by about the drift."""
+
+    def bias_deg() -> float:
+        island, _, _, run = _island_at_crossing(3.0, _TurnsWhileProbing)
+        assert run.builder.probes["kept"] >= 1 and island.origin_truth is not None
+        look = _look_points(cross_world(), island.origin_truth, seed=3)
+        res = localize(island.model, look, Pose2D(0.0, 0.0, 0.0), BuilderConfig().localize)
+        assert res.converged
+        return math.degrees(res.pose.theta)
+
+    registered = bias_deg()
+    monkeypatch.setattr(IslandBuilder, "_register",
+                        lambda self, model, points, guess: guess)
+    by_odometry = bias_deg()
+    assert abs(registered) < 1.5 and abs(by_odometry) > 3.0, (registered, by_odometry)
+
+
 def test_a_probe_that_passes_climbs_on_to_the_peak_its_look_reveals() -> None:
     """Stalled 2.75 m before the mouth, the star's model ends short of the crossing: the first
     probe stops in the plain corridor. Its look completes the model, whose peak lies further
-    on: a second probe takes the origin to the crossing's mouth (probe_climbs 1, the
-    default); with 0 it stays in the corridor."""
+    on: a second probe takes the origin to the crossing's mouth with probe_climbs 1; with 0
+    (the default) it stays in the corridor."""
     world = cross_world()
     once, anchor0, _, run0 = _island_at_crossing(3.0, stop_x=-4.0, climbs=0)
     twice, anchor, origin, run = _island_at_crossing(3.0, stop_x=-4.0, climbs=1)
