@@ -45,7 +45,7 @@ from island_msgs_py.types import (
     wrap_angle,
 )
 from island_sim.core.robot import OdometryConfig, SimRobot
-from island_sim.core.sonar import SonarConfig, SonarModel
+from island_sim.core.sonar import SonarConfig, SonarModel, ranges_to_points
 from island_sim.core.world import World
 
 from island_msgs_py import json_io
@@ -932,14 +932,13 @@ class _KeepsStarModel(IslandBuilder):
 
 def _look_points(world: World, at: Pose2D, seed: int) -> FloatArray:
     """Sonar echoes of a full turn in place at `at` (every 6 deg), in at's frame [m]."""
-    sonar, rng = SonarModel(SonarConfig()), np.random.default_rng(seed)
-    pts = []
-    for a in np.arange(0.0, 2.0 * math.pi, math.radians(6.0)):
-        r = sonar.scan(world, Pose2D(at.x, at.y, at.theta + a), rng)
-        ok = np.isfinite(r)
-        ang = sonar.angles_rad[ok] + a
-        pts.append(np.stack([r[ok] * np.cos(ang), r[ok] * np.sin(ang)], axis=1))
-    return np.concatenate(pts, axis=0)
+    sonar = SonarModel(SonarConfig())
+    turns = np.arange(0.0, 2.0 * math.pi, math.radians(6.0))
+    poses = np.stack([np.full_like(turns, at.x), np.full_like(turns, at.y), at.theta + turns], 1)
+    ranges = sonar.scan_many(world, poses, np.random.default_rng(seed))
+    return np.concatenate(
+        [ranges_to_points(r, sonar.angles_rad + a) for r, a in zip(ranges, turns, strict=True)]
+    )
 
 
 def test_a_kept_probe_adds_its_look_to_the_model() -> None:

@@ -836,18 +836,24 @@ class _DockPhase(StrEnum):
 
 
 @dataclass
-class _Dock:
-    island: Island
-    target: Pose2D  # the island origin in the odometry frame (estimated) [m, rad]
-    looks_left: int
-    phase: _DockPhase = _DockPhase.GO
-    turned_rad: float = 0.0
-    prev_theta: float = 0.0
-    points: list[FloatArray] = field(default_factory=list)  # odometry frame [m]
+class _Look:
+    """Go onto an origin, align with it, turn a full circle collecting scans (dock, probe)."""
+
+    phase: _DockPhase = field(default=_DockPhase.GO, kw_only=True)
+    turned_rad: float = field(default=0.0, kw_only=True)
+    prev_theta: float = field(default=0.0, kw_only=True)
+    points: list[FloatArray] = field(default_factory=list, kw_only=True)  # odometry frame [m]
 
 
 @dataclass
-class _Probe:
+class _Dock(_Look):
+    island: Island
+    target: Pose2D  # the island origin in the odometry frame (estimated) [m, rad]
+    looks_left: int
+
+
+@dataclass
+class _Probe(_Look):
     """An origin past the driven legs, checked on the spot before the island is accepted."""
 
     model: LineModel  # the star's model in the anchor frame [m]
@@ -857,10 +863,6 @@ class _Probe:
     fallback_measure: float
     fallback_model: LineModel | None = None  # the model kept with the fallback (None: model)
     climbs: int = 0  # probes passed before this one
-    phase: _DockPhase = _DockPhase.GO
-    turned_rad: float = 0.0
-    prev_theta: float = 0.0
-    points: list[FloatArray] = field(default_factory=list)  # odometry frame [m]
 
 
 @dataclass(frozen=True)
@@ -1006,14 +1008,10 @@ class IslandBuilder:
             if math.hypot(rel.x, rel.y) <= self.config.centre_radius_m:
                 att.centre_points.append(local)
             att.near_points.append(_to_frame(near_pts, att.anchor))
-        if self._state is _State.DOCKING and self._dock is not None:
-            if self._dock.phase is _DockPhase.LOOK:
-                self._dock.points.append(pts)
-            return
-        probe = self._attempt.probe if self._attempt is not None else None
-        if self._state is _State.PROBING and probe is not None:
-            if probe.phase is _DockPhase.LOOK:
-                probe.points.append(pts)
+        look = self._look()
+        if look is not None:
+            if look.phase is _DockPhase.LOOK:
+                look.points.append(pts)
             return
         self._recent.append((self._path_m, pts))
         while self._recent and self._recent[0][0] < self._path_m - self.config.quick_history_m:
@@ -1306,12 +1304,7 @@ class IslandBuilder:
             return
         shift, r_peak = Pose2D(0.0, 0.0, 0.0), att.best  # the origin in the anchor's frame
         if self.config.origin_at_peak and not att.first and len(model) > 0:
-            shift, r_peak = self._peak_origin(model, att, ahead=False)
-            far, r_far = (
-                self._peak_origin(model, att, ahead=True)
-                if self.config.peak_ahead_m > 0.0
-                else (shift, r_peak)
-            )
+            (shift, r_peak), (far, r_far) = self._peak_origin(model, att)
             if far != shift:  # past the driven legs: nothing was seen from there yet
                 att.probe = _Probe(model, far, r_far, shift, r_peak)
                 self._state = _State.PROBING
@@ -1373,32 +1366,42 @@ class IslandBuilder:
         self._state = _State.RETURNING
 
     def _peak_origin(
-        self, model: LineModel, att: _Attempt, ahead: bool
-    ) -> tuple[Pose2D, float]:
-        """Where along the driven star legs (with `ahead`, also past the ahead leg and past
-        the back leg along the straight path that led to the anchor, up to peak_ahead_m) the
-        model's normalized measure peaks: (the origin in the anchor frame,
-        its measure); the anchor itself unless the peak beats it by peak_min_gain."""
+        self, model: LineModel, att: _Attempt
+    ) -> tuple[tuple[Pose2D, float], tuple[Pose2D, float]]:
+        """Where the model's normalized measure peaks (the origin in the anchor frame, its
+        measure): along the driven star legs, and also past the ahead leg (and, with
+        peak_behind, past the back leg along the straight path that led to the anchor) up to
+        peak_ahead_m; each the anchor itself unless its peak beats it by peak_min_gain."""
         cfg = self.config
-        _, at_anchor = normalized_measures(cfg, self._evaluate(model.segments, np.zeros(2)))
-        best, best_r = Pose2D(0.0, 0.0, 0.0), at_anchor
+        anchor = (Pose2D(0.0, 0.0, 0.0), self._measure_at(model, np.zeros(2)))
+        legs, far = anchor, anchor
         for bearing, length in att.legs_done:
-            c, s = math.cos(bearing), math.sin(bearing)
             reach = length
-            if ahead and bearing == 0.0:
+            if bearing == 0.0:
                 reach = max(length, min(cfg.peak_ahead_m, att.ahead_free_m - cfg.star.clearance_m))
-            elif ahead and bearing == math.pi and cfg.peak_behind:  # the way it came: free
+            elif bearing == math.pi and cfg.peak_behind:  # the way it came: free
                 reach = max(length, min(cfg.peak_ahead_m, att.behind_free_m))
-            for d in np.arange(cfg.peak_step_m, reach + 1e-9, cfg.peak_step_m):
-                p = np.array([d * c, d * s])
-                if d > length and not self._reachable(model.segments, p):
-                    break
-                _, r = normalized_measures(cfg, self._evaluate(model.segments, p))
-                if r > best_r:
-                    best, best_r = Pose2D(float(p[0]), float(p[1]), 0.0), r
-        if best_r <= at_anchor * (1.0 + cfg.peak_min_gain):
-            return Pose2D(0.0, 0.0, 0.0), at_anchor
-        return best, best_r
+            u = np.array([math.cos(bearing), math.sin(bearing)])
+            for d, p, r in self._along(model, np.zeros(2), u, reach, length):
+                if d <= length and r > legs[1]:
+                    legs = (p, r)
+                if r > far[1]:
+                    far = (p, r)
+        floor = anchor[1] * (1.0 + cfg.peak_min_gain)
+        return (legs if legs[1] > floor else anchor), (far if far[1] > floor else anchor)
+
+    def _along(
+        self, model: LineModel, start: FloatArray, u: FloatArray, reach_m: float, free_m: float
+    ) -> Iterator[tuple[float, Pose2D, float]]:
+        """(d, the point start + d u, the model's measure there) every peak_step_m up to
+        reach_m, in the anchor frame; beyond free_m (driven, known free) only while the point
+        is _reachable, stopping at the first that is not."""
+        step = self.config.peak_step_m
+        for d in np.arange(step, reach_m + 1e-9, step):
+            p = start + float(d) * u
+            if d > free_m and not self._reachable(model.segments, p):
+                return
+            yield float(d), Pose2D(float(p[0]), float(p[1]), 0.0), self._measure_at(model, p)
 
     def _reachable(self, segs: FloatArray, p: FloatArray) -> bool:
         """Are the straight drives anchor -> p and robot -> p clear of the model's walls?"""
@@ -1444,7 +1447,7 @@ class IslandBuilder:
             self._accept_at(fallback_model, pr.fallback, pr.fallback_measure)
             return 0.0, 0.0
         att.points.append(look)
-        here = self._measure_at(model, pr.shift)
+        here = self._measure_at(model, np.array([pr.shift.x, pr.shift.y]))
         on = self._climb(model, pr.shift, here) if pr.climbs < self.config.probe_climbs else None
         if on is not None:  # the completed model peaks further on: probe there too
             att.probe = _Probe(model, on[0], on[1], pr.shift, here, model, pr.climbs + 1)
@@ -1467,10 +1470,9 @@ class IslandBuilder:
             return guess
         return res.pose
 
-    def _measure_at(self, model: LineModel, p: Pose2D) -> float:
-        """The model's normalized measure at p (anchor frame)."""
-        _, r = normalized_measures(self.config, self._evaluate(model.segments,
-                                                               np.array([p.x, p.y])))
+    def _measure_at(self, model: LineModel, p: FloatArray) -> float:
+        """The model's normalized measure at the point p (2,) [m] (anchor frame)."""
+        _, r = normalized_measures(self.config, self._evaluate(model.segments, p))
         return r
 
     def _climb(self, model: LineModel, at: Pose2D, r_at: float) -> tuple[Pose2D, float] | None:
@@ -1479,12 +1481,8 @@ class IslandBuilder:
         it beats r_at by peak_min_gain; else None."""
         cfg = self.config
         best: tuple[Pose2D, float] | None = None
-        sign = 1.0 if at.x >= 0.0 else -1.0
-        for d in np.arange(cfg.peak_step_m, cfg.peak_ahead_m + 1e-9, cfg.peak_step_m):
-            p = Pose2D(at.x + sign * float(d), at.y, 0.0)
-            if not self._reachable(model.segments, np.array([p.x, p.y])):
-                break
-            r = self._measure_at(model, p)
+        u = np.array([1.0 if at.x >= 0.0 else -1.0, 0.0])
+        for _, p, r in self._along(model, np.array([at.x, at.y]), u, cfg.peak_ahead_m, 0.0):
             if r > r_at * (1.0 + cfg.peak_min_gain) and (best is None or r > best[1]):
                 best = (p, r)
         return best
@@ -1556,7 +1554,8 @@ class IslandBuilder:
         rc = self.config.revisit
         islands = {i.id: i for i in self.islands}
         best: Recognition | None = None
-        for _iid, island, origin, sig_m, sig_th in self._candidates(islands):
+        candidates = list(self._candidates(islands))
+        for _iid, island, origin, sig_m, sig_th in candidates:
             sigmas = rc.star_search_sigmas if star else rc.search_sigmas
             radius = max(sigmas * sig_m, rc.search_min_m)
             max_dth = sigmas * sig_th
@@ -1580,7 +1579,7 @@ class IslandBuilder:
             found = self._search_island(island, pts, est, radius, max_dth, step, max_res)
             if found is not None and (best is None or found.residual_m < best.residual_m):
                 best = found
-        if best is not None and self._rival_fits(islands, pts, at, best.island_id, star):
+        if best is not None and self._rival_fits(candidates, pts, at, best.island_id, star):
             self._refuse("look_alike")
             return None
         return best
@@ -1603,8 +1602,8 @@ class IslandBuilder:
             yield iid, island, origin, sig_m, sig_th
 
     def _rival_fits(
-        self, islands: Mapping[int, Island], pts: FloatArray, at: Pose2D, chosen: int,
-        star: bool,
+        self, candidates: list[tuple[int, Island, Pose2D, float, float]], pts: FloatArray,
+        at: Pose2D, chosen: int, star: bool,
     ) -> bool:
         """Does another known island that may be here (rival_sigmas) fit the points too?
 
@@ -1617,22 +1616,18 @@ class IslandBuilder:
         if k <= 0:
             return False
         max_res = rc.star_max_residual_m if star else rc.max_residual_m
-        counts = dict(self.revisit_refusals)  # a rival's failed fits are not refusals
-        try:
-            for iid, island, origin, sig_m, sig_th in self._candidates(islands):
-                est = at.relative_to(origin)
-                if iid == chosen or math.hypot(est.x, est.y) > k * sig_m + rc.max_dock_m:
-                    continue
-                radius = min(max(k * sig_m, rc.search_min_m), rc.rival_max_m)
-                max_dth = min(k * sig_th, math.radians(rc.star_search_max_deg))
-                step = min(max(rc.search_step_m, radius / rc.star_search_cells),
-                           rc.rival_step_m)
-                if self._search_island(island, pts, est, radius, max_dth, step,
-                                       max_res) is not None:
-                    return True
-            return False
-        finally:
-            self.revisit_refusals = counts
+        for iid, island, origin, sig_m, sig_th in candidates:
+            est = at.relative_to(origin)
+            if iid == chosen or math.hypot(est.x, est.y) > k * sig_m + rc.max_dock_m:
+                continue
+            radius = min(max(k * sig_m, rc.search_min_m), rc.rival_max_m)
+            max_dth = min(k * sig_th, math.radians(rc.star_search_max_deg))
+            step = min(max(rc.search_step_m, radius / rc.star_search_cells), rc.rival_step_m)
+            # A rival's failed fits are not refusals of this recognition.
+            if self._search_island(island, pts, est, radius, max_dth, step, max_res,
+                                   count_refusals=False) is not None:
+                return True
+        return False
 
     def _search_island(
         self,
@@ -1643,8 +1638,12 @@ class IslandBuilder:
         max_dth_rad: float,
         step_m: float,
         max_residual_m: float,
+        count_refusals: bool = True,
     ) -> Recognition | None:
+        """The recognition of `island` in `pts` searched around `est` (see `recognize`), or
+        None; each refusal is counted in revisit_refusals unless count_refusals is False."""
         rc = self.config.revisit
+        refuse = self._refuse if count_refusals else (lambda _reason: None)
         segs = island.model.segments
         n = math.floor(radius_m / step_m + 1e-9)
         ticks = np.arange(-n, n + 1) * step_m
@@ -1680,26 +1679,26 @@ class IslandBuilder:
             res = localize(island.model, pts, g, self.config.localize)
             p = res.pose
             if not res.converged:
-                self._refuse("not_converged")
+                refuse("not_converged")
                 continue
             if res.residual_m > max_residual_m:
-                self._refuse("residual")
+                refuse("residual")
                 continue
             if res.constraint < rc.min_constraint:
-                self._refuse("weak_constraint")  # slides along a hallway: aliases along it
+                refuse("weak_constraint")  # slides along a hallway: aliases along it
                 continue
             if math.hypot(p.x - est.x, p.y - est.y) > radius_m:
-                self._refuse("outside_search_radius")
+                refuse("outside_search_radius")
                 continue
             if abs(wrap_angle(p.theta - est.theta)) > max_dth_rad + 2.0 * heading_step:
                 # The refinement turned the points far out of the heading window: a + junction
                 # fits itself turned by 90 deg (paper_fig4: 0.09 m residual, 92 % inliers).
-                self._refuse("outside_heading_window")
+                refuse("outside_heading_window")
                 continue
             world = _from_frame(pts, p)
             inl = float(np.mean(point_segment_distance(world, segs).min(axis=1) <= rc.inlier_m))
             if inl < rc.min_inlier_fraction:
-                self._refuse("inliers")
+                refuse("inliers")
                 continue
             fits.append(Recognition(island.id, p, float(res.residual_m), inl))
         if not fits:
@@ -1707,16 +1706,16 @@ class IslandBuilder:
         best = min(fits, key=lambda f: f.residual_m)
         p = best.pose
         if any(math.hypot(f.pose.x - p.x, f.pose.y - p.y) > rc.ambiguity_m for f in fits):
-            self._refuse("ambiguous")  # the model fits at distinct places (e.g. along doors)
+            refuse("ambiguous")  # the model fits at distinct places (e.g. along doors)
             return None
         if math.hypot(p.x, p.y) > rc.max_dock_m:
-            self._refuse("origin_too_far")
+            refuse("origin_too_far")
             return None
         if not self._path_clear(segs, p):
-            self._refuse("path_blocked")
+            refuse("path_blocked")
             return None
         if not self._localizes_back(island.model, pts, p):
-            self._refuse("localization_check")
+            refuse("localization_check")
             return None
         return best
 
@@ -1909,7 +1908,7 @@ class IslandBuilder:
         dock.phase = _DockPhase.GO
         return 0.0, 0.0
 
-    def _go_align(self, look: _Dock | _Probe, rel: Pose2D, tol_rad: float
+    def _go_align(self, look: _Look, rel: Pose2D, tol_rad: float
                   ) -> tuple[float, float] | None:
         """GO onto the origin (`rel`: the robot in its frame), then ALIGN with its heading
         within tol_rad: the command, or None once aligned (phase ALIGN) or looking (LOOK)."""
@@ -1924,12 +1923,20 @@ class IslandBuilder:
                 return 0.0, self._turn_rate(err)
         return None
 
-    def _start_look(self, look: _Dock | _Probe) -> None:
+    def _look(self) -> _Look | None:
+        """The dock or probe under way, if the state is one of theirs."""
+        if self._state is _State.DOCKING:
+            return self._dock
+        if self._state is _State.PROBING and self._attempt is not None:
+            return self._attempt.probe
+        return None
+
+    def _start_look(self, look: _Look) -> None:
         assert self._odom is not None
         look.phase, look.turned_rad, look.prev_theta, look.points = (
             _DockPhase.LOOK, 0.0, self._odom.theta, [])
 
-    def _look_step(self, look: _Dock | _Probe) -> tuple[float, float] | None:
+    def _look_step(self, look: _Look) -> tuple[float, float] | None:
         """LOOK: turn a full circle in place (scans collect in look.points); None once done."""
         assert self._odom is not None
         look.turned_rad += abs(wrap_angle(self._odom.theta - look.prev_theta))
