@@ -22,7 +22,7 @@ from island_mapping.core.navigate import (
     with_reverse_edges,
 )
 from island_msgs_py.types import ControlStrategy, Edge, Island, LineModel, ModelType, Pose2D
-from island_sim.core.sonar import SonarConfig, SonarModel
+from island_sim.core.sonar import SonarConfig, SonarModel, ranges_to_points
 from island_sim.core.world import World, load_world
 
 H = 1.25  # corridor half width [m]
@@ -260,10 +260,7 @@ def test_a_fit_turned_far_from_the_estimate_is_not_trusted(monkeypatch: pytest.M
     for k in range(8):  # a look-around: eight scans turned by 45 deg, in the island frame
         th = k * math.pi / 4
         pose = Pose2D(origin.x, origin.y, origin.theta + th)
-        r = sonar.scan(world, pose, rng)
-        a = sonar.angles_rad + th
-        ok = np.isfinite(r)
-        pts.append(np.stack([r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])], axis=1))
+        pts.append(ranges_to_points(sonar.scan(world, pose, rng), sonar.angles_rad + th))
     points = np.concatenate(pts, axis=0)
     cfg = NavigateConfig()
     res, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0), cfg)
