@@ -9,7 +9,9 @@ import pytest
 from island_mapping.bag.reader import open_bag
 from island_mapping.cli import main
 from island_mapping.core.graph import TopoGraph
+from island_mapping.runner import RunConfig, RunError, run
 from island_msgs_py.json_io import load_graph_json
+from island_sim.core.robot import OdometryConfig
 
 
 @pytest.mark.slow
@@ -18,7 +20,8 @@ def test_explore_writes_the_map_figures_recording_and_summary(
 ) -> None:
     out = tmp_path / "run"
     code = main(["explore", "--world", "paper_fig4", "--out", str(out), "--seed", "2",
-                 "--sim-seconds", "150", "--routes", "2", "--quiet"])
+                 "--sim-seconds", "150", "--routes", "2", "--quiet",
+                 "--builder-param", "builder.peak_min_gain=0.1"])  # the default: same run
     assert code == 0
     for name in ("graph.json", "graph.geojson", "graph.graphml", "exploration.png",
                  "topology.png", "strategies.txt", "summary.json"):
@@ -26,6 +29,7 @@ def test_explore_writes_the_map_figures_recording_and_summary(
     summary = json.loads((out / "summary.json").read_text())
     islands, edges = load_graph_json(out / "graph.json")
     assert summary["islands"] == len(islands) >= 1
+    assert summary["parameters"] == {"island_builder_node": {"builder.peak_min_gain": 0.1}}
     assert summary["edges"] == len(edges)
     assert summary["accepted"] == len(islands)
     assert summary["attempts"] >= summary["accepted"]
@@ -54,3 +58,42 @@ def test_explore_rejects_a_bad_world(tmp_path: Path, capsys: pytest.CaptureFixtu
     err = capsys.readouterr().err
     assert "bad.yaml" in err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(("flag", "value", "message"), [
+    ("--param", "odometry.wheelbase_error=0.01", "expected NODE:NAME=VALUE"),
+    ("--param", "odometry_node:odometry.wheelbase_error", "expected NAME=VALUE"),
+    ("--builder-param", "builder.e_min_m", "expected NAME=VALUE"),
+    ("--builder-param", "builder.e_min_m=[1, 2]", "must be a bool, number or string"),
+])
+def test_explore_rejects_malformed_parameters_before_writing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], flag: str, value: str, message: str
+) -> None:
+    assert main(["explore", "--out", str(tmp_path / "o"), flag, value, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and flag in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(("params", "message"), [
+    ({"odometry_nod": {"seed": 3}}, "no node odometry_nod in the run"),
+    ({"island_builder_node": {"builder.no_such": 1}},
+     "island_builder_node has no parameter builder.no_such"),
+    ({"island_builder_node": {"builder.e_min_m": -1.0}}, "island_builder_node rejected"),
+])
+def test_a_run_names_the_node_and_parameter_it_cannot_take(
+    params: dict[str, dict[str, object]], message: str
+) -> None:
+    with pytest.raises(RunError, match=message):
+        run(RunConfig(sim_seconds=1.0, params=params))
+
+
+def test_a_run_drives_and_reports_the_parameters_it_was_given(tmp_path: Path) -> None:
+    """An odometry override reaches the robot, and route evaluation drives the same robot."""
+    rec = run(RunConfig(sim_seconds=2.0, params={
+        "odometry_node": {"odometry.var_heading_rad2_per_rad": 0.002},
+    }))
+    assert rec.sim_setup is not None
+    assert rec.sim_setup.odometry.var_heading_rad2_per_rad == 0.002
+    assert rec.sim_setup.odometry.var_dist_m2_per_m == OdometryConfig().var_dist_m2_per_m
+    assert rec.sim_seconds >= 1.9

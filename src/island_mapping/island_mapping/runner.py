@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import rclpy
@@ -39,6 +39,7 @@ from std_msgs.msg import String
 
 from island_mapping.bag.recorder import RunRecorder
 from island_mapping.core.graph import TopoGraph
+from island_mapping.core.navigate import SimSetup
 from island_mapping.nodes.island_builder_node import IslandBuilderNode
 from island_mapping.nodes.island_localizer_node import IslandLocalizerNode
 from island_mapping.nodes.topo_graph_server_node import TopoGraphServerNode
@@ -49,6 +50,9 @@ RECORDER_MATCH_WAIT_S = 5.0
 """Wall time to wait for the recorder to match the run's publishers before the clock starts."""
 PRIVATE_DOMAIN_MIN, PRIVATE_DOMAIN_MAX = 102, 232
 """Domains picked for unattended runs: valid for Fast DDS on Linux, above those tests use."""
+NODE_NAMES = ("odometry_node", "sonar_node", "hall_follower_node", "island_builder_node",
+              "island_localizer_node", "topo_graph_server_node")
+"""The nodes of a run, by the names `RunConfig.params` takes."""
 RECORDED_TOPICS_REQUIRED = ("/odom", "/ground_truth", "/sonar/scan", "/cmd_vel", "/clock")
 
 
@@ -93,6 +97,8 @@ class RunRecord:
     bag_dir: Path | None
     # Why the builder refused revisit hypotheses (diagnostics): reason -> count.
     revisit_refusals: dict[str, int] = field(default_factory=dict)
+    # What the simulated robot ran with (parameters included): route evaluation drives the same.
+    sim_setup: SimSetup | None = None
 
     @property
     def real_time_factor(self) -> float:
@@ -146,9 +152,25 @@ def resolve_domain_id(requested: int) -> int:
     return random.SystemRandom().randint(PRIVATE_DOMAIN_MIN, PRIVATE_DOMAIN_MAX)
 
 
-def _overrides(base: dict[str, Any], extra: dict[str, Any] | None) -> list[Parameter]:
-    merged = {**base, **(extra or {})}
-    return [Parameter(k, value=v) for k, v in merged.items()]
+_N = TypeVar("_N", bound=Node)
+
+
+def _make_node(ctx: Context, cls: type[_N], name: str, base: dict[str, Any],
+               params: dict[str, dict[str, Any]], made: list[Node]) -> _N:
+    """The node `name` with the run's parameters `base` and the user's `params[name]` over
+    them, appended to `made` (destroyed on the way out); a RunError naming a rejected value or
+    a parameter the node does not declare."""
+    extra = params.get(name, {})
+    overrides = [Parameter(k, value=v) for k, v in {**base, **extra}.items()]
+    try:
+        node = cls(context=ctx, parameter_overrides=overrides)
+    except Exception as exc:  # a bad value: rclpy and the core configs raise various types
+        raise RunError(f"{name} rejected the parameters {extra}: {exc}") from None
+    made.append(node)
+    unknown = sorted(k for k in extra if not node.has_parameter(k))
+    if unknown:
+        raise RunError(f"{name} has no parameter {', '.join(unknown)}")
+    return node
 
 
 def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunRecord:
@@ -161,23 +183,26 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
     executor = SingleThreadedExecutor(context=ctx)
     try:
         sim_time = {"use_sim_time": True}
-        p = cfg.params
-        odo = OdometryNode(context=ctx, parameter_overrides=_overrides({
+        unknown = sorted(set(cfg.params) - set(NODE_NAMES))
+        if unknown:
+            raise RunError(f"no node {', '.join(unknown)} in the run (nodes: "
+                           f"{', '.join(NODE_NAMES)})")
+        odo = _make_node(ctx, OdometryNode, "odometry_node", {
             "world": cfg.world, "seed": cfg.seed, "sim.real_time_factor": 0.0,
             "sim.lockstep": True, "sim.stop_after_s": float(cfg.sim_seconds),
-        }, p.get("odometry_node")))
-        sonar = SonarNode(context=ctx, parameter_overrides=_overrides(
-            {**sim_time, "world": cfg.world, "seed": cfg.seed + 1}, p.get("sonar_node")))
-        follower = HallFollowerNode(context=ctx, parameter_overrides=_overrides(
-            {**sim_time, "seed": cfg.seed + 2}, p.get("hall_follower_node")))
-        builder = IslandBuilderNode(context=ctx, parameter_overrides=_overrides(
-            sim_time, p.get("island_builder_node")))
-        localizer = IslandLocalizerNode(context=ctx, parameter_overrides=_overrides(
-            sim_time, p.get("island_localizer_node")))
-        server = TopoGraphServerNode(context=ctx, parameter_overrides=_overrides(
-            {**sim_time, "storage_path": ""}, p.get("topo_graph_server_node")))
+        }, cfg.params, nodes)
+        sonar = _make_node(ctx, SonarNode, "sonar_node",
+                           {**sim_time, "world": cfg.world, "seed": cfg.seed + 1}, cfg.params,
+                           nodes)
+        follower = _make_node(ctx, HallFollowerNode, "hall_follower_node",
+                              {**sim_time, "seed": cfg.seed + 2}, cfg.params, nodes)
+        builder = _make_node(ctx, IslandBuilderNode, "island_builder_node", sim_time, cfg.params,
+                             nodes)
+        _make_node(ctx, IslandLocalizerNode, "island_localizer_node", sim_time, cfg.params, nodes)
+        server = _make_node(ctx, TopoGraphServerNode, "topo_graph_server_node",
+                            {**sim_time, "storage_path": ""}, cfg.params, nodes)
         observer = _Observer(ctx)
-        nodes = [odo, sonar, follower, builder, localizer, server, observer]
+        nodes.append(observer)
         # The recorder matches every publisher before the simulation may take its first step.
         executor.add_node(observer)
         if cfg.record_dir:
@@ -215,6 +240,8 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
             collisions=int(odo.robot.collisions),
             lockstep_timeouts=int(odo.lockstep_timeouts),
             revisit_refusals=dict(builder.builder.revisit_refusals),
+            sim_setup=SimSetup(world=odo.world, sonar=sonar.cfg.sonar, robot=odo.cfg.robot,
+                               odometry=odo.cfg.odometry, follower=follower.cfg.follower),
             bag_dir=recorder.path if recorder is not None else None,
         )
     finally:

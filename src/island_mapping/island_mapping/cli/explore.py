@@ -27,6 +27,7 @@ from island_msgs_py.types import Pose2D
 from island_sim.core.world import WorldError, load_world
 
 from island_mapping.cli import CliError
+from island_mapping.cli.params import parse_assignments, parse_node_assignments
 from island_mapping.cli.progress import ProgressBar
 from island_mapping.core.graph import TopoGraph
 from island_mapping.core.navigate import NavigateError, SimSetup, evaluate_routes
@@ -57,6 +58,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--domain-id", type=int, default=-1,
                         help="ROS domain of the run (default: ROS_DOMAIN_ID if set, else a random "
                              "private one, printed, so concurrent runs stay apart)")
+    parser.add_argument("--builder-param", action="append", default=[], metavar="NAME=VALUE",
+                        help="island_builder_node parameter, e.g. builder.register_legs=true "
+                             "(VALUE parsed as YAML); repeatable")
+    parser.add_argument("--param", action="append", default=[], metavar="NODE:NAME=VALUE",
+                        help="any node's parameter, e.g. "
+                             "odometry_node:odometry.var_heading_rad2_per_rad=0.002; repeatable")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -81,12 +88,12 @@ def _counts(events: list[dict[str, Any]]) -> dict[str, int]:
     }
 
 
-def _route_summary(graph: TopoGraph, world: Any, events: list[dict[str, Any]], n_pairs: int,
-                   seed: int) -> dict[str, Any]:
+def _route_summary(graph: TopoGraph, setup: SimSetup, events: list[dict[str, Any]],
+                   n_pairs: int, seed: int) -> dict[str, Any]:
     if n_pairs <= 0:
         return {"skipped": "--routes 0"}
     try:
-        ev = evaluate_routes(graph, SimSetup(world=world), n_pairs,
+        ev = evaluate_routes(graph, setup, n_pairs,
                              np.random.default_rng(seed), _origins_odom(events))
     except NavigateError as exc:
         return {"skipped": str(exc)}
@@ -113,6 +120,9 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     if not args.sim_seconds > 0:
         raise CliError(f"--sim-seconds must be > 0, got {args.sim_seconds}")
+    params = parse_node_assignments(args.param, "--param")
+    builder = params.setdefault("island_builder_node", {})
+    builder.update(parse_assignments(args.builder_param, "--builder-param"))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     bag_dir = out / "run_bag"
@@ -126,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
           f"`ROS_DOMAIN_ID={domain} islands topic echo /hall_follower/strategy`)", file=sys.stderr)
     cfg = RunConfig(world=args.world, seed=args.seed, sim_seconds=args.sim_seconds,
                     record_dir="" if args.no_record else str(bag_dir),
-                    wall_timeout_s=args.wall_timeout, domain_id=domain)
+                    wall_timeout_s=args.wall_timeout, domain_id=domain, params=params)
     try:
         rec = run_nodes(cfg, progress)
     except RunError as exc:
@@ -141,11 +151,13 @@ def run(args: argparse.Namespace) -> int:
                     title=f"Islands of reliability: {title} (cf. paper Fig. 4b)")
     atomic_write_text(out / "strategies.txt", strategies_table(graph))
     t0 = time.monotonic()
-    routes = _route_summary(graph, world, rec.events, args.routes, args.seed)
+    setup = rec.sim_setup if rec.sim_setup is not None else SimSetup(world=world)
+    routes = _route_summary(graph, setup, rec.events, args.routes, args.seed)
     origins = {i.id: i.origin_truth for i in graph.islands() if i.origin_truth is not None}
     summary = {
         "world": world.name,
         "seed": args.seed,
+        "parameters": {k: v for k, v in params.items() if v},
         "sim_seconds": rec.sim_seconds,
         "wall_seconds": round(rec.wall_seconds, 2),
         "real_time_factor": round(rec.real_time_factor, 2),

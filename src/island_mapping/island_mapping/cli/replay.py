@@ -11,10 +11,11 @@ the next scan goes out (see island_mapping.replay and docs/replay.md), and write
   DIR/replay.json                                          the comparison printed on stdout
 
 The comparison is against --reference, or else the recorded run's graph: BAG_DIR/../graph.json
-(what `islands explore --out` leaves beside run_bag/) when it exists. It also compares the
-builder's events with the recorded /island_builder/events. Exit code 0 when the graphs are
-identical (or there is nothing to compare with), 1 when they differ, 2 on bad input (missing or
-damaged bag: use --allow-damaged to replay the intact part of a truncated recording).
+(what `islands explore --out` leaves beside run_bag/) when it exists. Without --builder-param the
+builder takes the overrides the run was made with from BAG_DIR/../summary.json, if any. It also
+compares the builder's events with the recorded /island_builder/events. Exit code 0 when the
+graphs are identical (or there is nothing to compare with), 1 when they differ, 2 on bad input
+(missing or damaged bag: use --allow-damaged to replay the intact part of a truncated recording).
 """
 
 from __future__ import annotations
@@ -25,14 +26,15 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import yaml
 from island_msgs_py.json_io import GraphFormatError, atomic_write_text
 
 from island_mapping.cli import CliError
+from island_mapping.cli.params import parse_assignments
 from island_mapping.core.graph import GraphError, TopoGraph
 
 REFERENCE_NAME = "graph.json"
 REPORT_NAME = "replay.json"
+SUMMARY_NAME = "summary.json"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -58,20 +60,23 @@ def default_reference(bag: Path) -> Path:
     return bag_dir.parent / REFERENCE_NAME
 
 
-def _builder_params(items: list[str]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for item in items:
-        name, sep, text = item.partition("=")
-        if not sep or not name.strip():
-            raise CliError(f"--builder-param {item!r}: expected NAME=VALUE")
-        try:
-            value = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise CliError(f"--builder-param {item!r}: value is not YAML ({exc})") from None
-        if not isinstance(value, (bool, int, float, str)):
-            raise CliError(f"--builder-param {item!r}: value must be a bool, number or string")
-        out[name.strip()] = value
-    return out
+def recorded_builder_params(bag: Path) -> dict[str, Any]:
+    """The island_builder_node overrides `islands explore` ran with, from the summary.json it
+    leaves beside the bag directory ({} when there is none or it names none)."""
+    bag_dir = bag if bag.is_dir() else bag.parent
+    path = bag_dir.parent / SUMMARY_NAME
+    if not path.is_file():
+        return {}
+    try:
+        summary = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise CliError(f"{path}: not readable JSON ({exc}); pass --builder-param "
+                       "explicitly or move it away") from None
+    params = summary.get("parameters", {}) if isinstance(summary, dict) else {}
+    builder = params.get("island_builder_node", {}) if isinstance(params, dict) else {}
+    if not isinstance(builder, dict):
+        raise CliError(f"{path}: parameters.island_builder_node is not a mapping")
+    return dict(builder)
 
 
 def _load_reference(path: Path) -> TopoGraph:
@@ -95,7 +100,12 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"{bag}: no such bag directory or .mcap file")
     if not (args.tol >= 0):
         raise CliError(f"--tol must be >= 0, got {args.tol}")
-    params = _builder_params(args.builder_param)
+    params = parse_assignments(args.builder_param, "--builder-param")
+    if not params:
+        params = recorded_builder_params(bag)
+        if params:
+            print(f"islands replay: builder parameters of the recorded run (summary.json): "
+                  f"{params}", file=sys.stderr)
     reference = Path(args.reference) if args.reference else default_reference(bag)
     if args.reference and not reference.is_file():
         raise CliError(f"--reference {reference}: no such file")
