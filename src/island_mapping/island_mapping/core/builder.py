@@ -471,7 +471,9 @@ class BuilderConfig:
         default=5.0,
         metadata={
             "help": "a deferred attempt starts anyway after this long without reaching "
-            "the next check (the robot stopped) [s]"
+            "the next check (the robot stopped), once the hall follower is not turning (at a "
+            "dead end it turns round in place: live seed 9 anchored an island mid-turn, 43 deg "
+            "off the corridor, and going on from it failed 4 of 20 routes) [s]"
         },
     )
     dismiss_min_legs: int = field(
@@ -490,6 +492,23 @@ class BuilderConfig:
             "help": "once the measure passes eq. 3, still drive the remaining legs so the "
             "island's model is complete (the paper's Fig. 4a shows full stars for built "
             "islands); false = accept at once [bool]"
+        },
+    )
+    register_legs: bool = field(
+        default=True,
+        metadata={
+            "help": "register each star leg's echoes onto the model the earlier legs built and "
+            "turn them, and the anchor, by the heading found, weighted against odometry's "
+            "heading variance since the anchor (a Kalman gain with register_sigma_deg): every "
+            "turn at the anchor adds heading noise, which otherwise turns the later legs' walls "
+            "in the island's model [bool]"
+        },
+    )
+    register_sigma_deg: float = field(
+        default=2.5,
+        metadata={
+            "help": "heading error of one leg's registration onto the earlier legs' sonar "
+            "model (a partial view through 25 deg cones: 2-4 deg seen on paper_fig4) [deg]"
         },
     )
     origin_at_peak: bool = field(
@@ -613,7 +632,7 @@ class BuilderConfig:
 
     def __post_init__(self) -> None:
         for name in ("e_min_m", "threshold_line", "threshold_fisher", "quick_history_m",
-                     "peak_step_m"):
+                     "peak_step_m", "register_sigma_deg"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise BuilderError(f"BuilderConfig.{name}: expected a finite number > 0, got {v!r}")
@@ -891,6 +910,12 @@ class _Attempt:
     phase: _LegPhase = _LegPhase.TURN
     leg_length_m: float = 0.0
     legs_done: list[tuple[float, float]] = field(default_factory=list)
+    # Where the current leg's scans begin in points, centre_points and near_points.
+    leg_marks: tuple[int, int, int] = (0, 0, 0)
+    # Heading variance of the pose in the anchor frame after the last leg registration, and
+    # odometry's relative heading variance then [rad^2].
+    heading_var_rad2: float = 0.0
+    odom_var_seen_rad2: float = 0.0
     ahead_free_m: float = 0.0  # nearest echo ahead of the anchor when the attempt started [m]
     behind_free_m: float = 0.0  # straight path the follower drove up to the anchor [m]
     probe: _Probe | None = None
@@ -1093,11 +1118,16 @@ class IslandBuilder:
         steps = self._strategy.steps
         if not steps or self.config.settled_go_m <= 0:
             return True
-        last = steps[-1]
-        if last.kind is PrimitiveKind.ROT:
+        if self._follower_turning():
             return False
+        last = steps[-1]
         turned_before = any(s.kind is PrimitiveKind.ROT for s in steps[:-1])
         return not turned_before or last.metres >= self.config.settled_go_m
+
+    def _follower_turning(self) -> bool:
+        """Is the hall follower's latest primitive a turn (it records turns as they go on)?"""
+        steps = self._strategy.steps
+        return bool(steps) and steps[-1].kind is PrimitiveKind.ROT
 
     def _maybe_attempt(self) -> None:
         eps = self.epsilon_m
@@ -1106,6 +1136,8 @@ class IslandBuilder:
         stalled = (
             self._defer_prev is not None and self._t - self._defer_t_s > self.config.defer_timeout_s
         )
+        if stalled and self._follower_turning():
+            return  # anchored mid-turn, theta 0 would lie across the hallway: wait for its end
         if stalled:  # deferring, but the robot stopped moving on: attempt here
             self._defer_prev, self._defer_m = None, 0.0
             if not self._try_revisit():
@@ -1234,6 +1266,8 @@ class IslandBuilder:
                     return self._drive_line(bearing, lateral, min(sc.speed_mps, remaining * 2.0))
                 att.legs_done.append((bearing, max(along, 0.0)))
                 att.phase = _LegPhase.BACK
+                if self.config.register_legs:
+                    self._register_leg(att)
                 if self._evaluate_attempt():
                     return 0.0, 0.0
             if att.phase is _LegPhase.BACK:
@@ -1241,6 +1275,7 @@ class IslandBuilder:
                     return self._drive_line(bearing, lateral, -min(sc.speed_mps, along * 2.0))
                 att.leg += 1
                 att.phase = _LegPhase.TURN
+                att.leg_marks = (len(att.points), len(att.centre_points), len(att.near_points))
         # All legs done without a decision.
         if att.first or att.best > att.bound:
             self._accept()
@@ -1259,6 +1294,33 @@ class IslandBuilder:
         steer = heading_err - math.copysign(1.0, v) * 1.5 * lateral_m
         w = float(np.clip(sc.heading_gain_per_s * steer, -sc.turn_rate_radps, sc.turn_rate_radps))
         return v, w
+
+    def _register_leg(self, att: _Attempt) -> None:
+        """Register the current leg's echoes (since the turn that began it) onto the model of
+        the earlier legs, and turn them, and the anchor (so the robot's pose in it too), by the
+        heading found times the gain var / (var + register_sigma^2), var the heading variance
+        odometry added since the last registration plus what that one left. Only the heading:
+        a partial view constrains a hallway's position along it poorly. Nothing when this is
+        the first leg driven or the fit is refused."""
+        i, j, k = att.leg_marks
+        if i == 0 or i == len(att.points) or self._star_rel is None:
+            return
+        model = self._fit(np.concatenate(att.points[:i], axis=0))
+        if len(model) == 0:
+            return
+        identity = Pose2D(0.0, 0.0, 0.0)
+        found = self._register(model, np.concatenate(att.points[i:], axis=0), identity)
+        if found == identity:
+            return
+        odom_var = float(self._star_rel.p[2, 2])
+        var = att.heading_var_rad2 + max(odom_var - att.odom_var_seen_rad2, 0.0)
+        gain = var / (var + math.radians(self.config.register_sigma_deg) ** 2)
+        att.heading_var_rad2, att.odom_var_seen_rad2 = (1.0 - gain) * var, odom_var
+        fix = Pose2D(0.0, 0.0, gain * found.theta)
+        att.points[i:] = [_from_frame(p, fix) for p in att.points[i:]]
+        att.centre_points[j:] = [_from_frame(p, fix) for p in att.centre_points[j:]]
+        att.near_points[k:] = [_from_frame(p, fix) for p in att.near_points[k:]]
+        att.anchor = att.anchor.compose(fix.inverse())
 
     def _evaluate_attempt(self) -> bool:
         """Fit and evaluate after a leg; returns True when the attempt was decided."""
