@@ -60,7 +60,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "private one, printed, so concurrent runs stay apart)")
     parser.add_argument("--builder-param", action="append", default=[], metavar="NAME=VALUE",
                         help="island_builder_node parameter, e.g. builder.register_legs=true "
-                             "(VALUE parsed as YAML); repeatable")
+                             "(VALUE parsed as YAML, typed as ROS parameters are: 1.0 for a "
+                             "float); repeatable")
     parser.add_argument("--param", action="append", default=[], metavar="NODE:NAME=VALUE",
                         help="any node's parameter, e.g. "
                              "odometry_node:odometry.var_heading_rad2_per_rad=0.002; repeatable")
