@@ -9,7 +9,7 @@ import pytest
 from island_mapping.bag.reader import open_bag
 from island_mapping.cli import main
 from island_mapping.core.graph import TopoGraph
-from island_mapping.runner import RunConfig, RunError, run
+from island_mapping.runner import RunConfig, RunParameterError, run
 from island_msgs_py.json_io import load_graph_json
 from island_sim.core.robot import OdometryConfig
 
@@ -84,8 +84,19 @@ def test_explore_rejects_malformed_parameters_before_writing(
 def test_a_run_names_the_node_and_parameter_it_cannot_take(
     params: dict[str, dict[str, object]], message: str
 ) -> None:
-    with pytest.raises(RunError, match=message):
+    with pytest.raises(RunParameterError, match=message):
         run(RunConfig(sim_seconds=1.0, params=params))
+
+
+def test_explore_names_a_parameter_no_node_has(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(["explore", "--out", str(tmp_path / "o"), "--quiet", "--no-record",
+                 "--builder-param", "builder.no_such=1.0"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "island_builder_node has no parameter builder.no_such" in err
+    assert "Traceback" not in err and not (tmp_path / "o" / "summary.json").exists()
 
 
 def test_a_run_drives_and_reports_the_parameters_it_was_given(tmp_path: Path) -> None:

@@ -60,6 +60,10 @@ class RunError(RuntimeError):
     """The in-process run could not be set up or did not finish."""
 
 
+class RunParameterError(RunError):
+    """A parameter override names no node of the run, or one its node rejects or lacks."""
+
+
 @dataclass(frozen=True)
 class RunConfig:
     """One in-process run (the defaults are the README's main job)."""
@@ -165,11 +169,11 @@ def _make_node(ctx: Context, cls: type[_N], name: str, base: dict[str, Any],
     try:
         node = cls(context=ctx, parameter_overrides=overrides)
     except Exception as exc:  # a bad value: rclpy and the core configs raise various types
-        raise RunError(f"{name} rejected the parameters {extra}: {exc}") from None
+        raise RunParameterError(f"{name} rejected the parameters {extra}: {exc}") from None
     made.append(node)
     unknown = sorted(k for k in extra if not node.has_parameter(k))
     if unknown:
-        raise RunError(f"{name} has no parameter {', '.join(unknown)}")
+        raise RunParameterError(f"{name} has no parameter {', '.join(unknown)}")
     return node
 
 
@@ -185,7 +189,7 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
         sim_time = {"use_sim_time": True}
         unknown = sorted(set(cfg.params) - set(NODE_NAMES))
         if unknown:
-            raise RunError(f"no node {', '.join(unknown)} in the run (nodes: "
+            raise RunParameterError(f"no node {', '.join(unknown)} in the run (nodes: "
                            f"{', '.join(NODE_NAMES)})")
         odo = _make_node(ctx, OdometryNode, "odometry_node", {
             "world": cfg.world, "seed": cfg.seed, "sim.real_time_factor": 0.0,

@@ -111,7 +111,7 @@ def _route_summary(graph: TopoGraph, setup: SimSetup, events: list[dict[str, Any
 
 
 def run(args: argparse.Namespace) -> int:
-    from island_mapping.runner import RunConfig, RunError, resolve_domain_id
+    from island_mapping.runner import RunConfig, RunError, RunParameterError, resolve_domain_id
     from island_mapping.runner import run as run_nodes
     from island_mapping.viz.explore import exploration_figure, strategies_table, topology_figure
 
@@ -140,6 +140,8 @@ def run(args: argparse.Namespace) -> int:
                     wall_timeout_s=args.wall_timeout, domain_id=domain, params=params)
     try:
         rec = run_nodes(cfg, progress)
+    except RunParameterError as exc:
+        raise CliError(str(exc)) from None
     except RunError as exc:
         print(f"islands explore: {exc}", file=sys.stderr)
         return 1
