@@ -54,17 +54,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
 
+def _beside_bag(bag: Path, name: str) -> Path:
+    """The file `name` that `islands explore --out` leaves beside the bag directory (BAG is
+    that directory or its .mcap file)."""
+    bag_dir = bag if bag.is_dir() else bag.parent
+    return bag_dir.parent / name
+
+
 def default_reference(bag: Path) -> Path:
     """Where `islands explore` leaves the recorded run's graph: beside the bag directory."""
-    bag_dir = bag if bag.is_dir() else bag.parent
-    return bag_dir.parent / REFERENCE_NAME
+    return _beside_bag(bag, REFERENCE_NAME)
 
 
 def recorded_builder_params(bag: Path) -> dict[str, Any]:
     """The island_builder_node overrides `islands explore` ran with, from the summary.json it
     leaves beside the bag directory ({} when there is none or it names none)."""
-    bag_dir = bag if bag.is_dir() else bag.parent
-    path = bag_dir.parent / SUMMARY_NAME
+    path = _beside_bag(bag, SUMMARY_NAME)
     if not path.is_file():
         return {}
     try:
