@@ -73,7 +73,9 @@ def test_nodes_in_separate_processes_drive_the_robot(ros_context: Any) -> None:
         for p in procs:
             try:
                 out, _ = p.communicate(timeout=10.0)
-            except subprocess.TimeoutExpired:
+            except subprocess.TimeoutExpired:  # hung: have it print its stacks, then kill it
+                p.send_signal(signal.SIGUSR1)
+                time.sleep(1.0)
                 p.kill()
                 out, _ = p.communicate()
             outputs.append(out)

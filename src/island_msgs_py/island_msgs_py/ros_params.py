@@ -8,7 +8,9 @@ Nested dataclass fields become nested dotted names; enum fields are declared as 
 from __future__ import annotations
 
 import dataclasses
+import faulthandler
 import os
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from enum import Enum
@@ -101,6 +103,8 @@ def run_node(
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
     ensure_ros_env()
+    if hasattr(signal, "SIGUSR1"):  # `kill -USR1 <pid>` prints every thread's stack: a hung node
+        faulthandler.register(signal.SIGUSR1, all_threads=True)
     rclpy.init(args=list(args) if args is not None else None)
     node: Node | None = None
     executor: SingleThreadedExecutor | None = None
