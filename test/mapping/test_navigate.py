@@ -280,3 +280,41 @@ def test_a_fit_turned_far_from_the_estimate_is_not_trusted(monkeypatch: pytest.M
     assert trusted
     with pytest.raises(NavigateError, match=r"NavigateConfig\.max_turn_deg"):
         NavigateConfig(max_turn_deg=-1.0)
+
+
+def test_a_weakly_constrained_fit_is_no_candidate(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A fit that barely pins the position along one axis (localize's own threshold is 0.03)
+    is no candidate for localize_multi: paper_fig4 offline, a look from a hallway 2 m short of
+    a + junction's origin 'localized' 2 m sideways and 24 deg turned with constraint 0.03 and
+    the smallest residual of all fits, and the route was lost. The same look with the
+    fits' constraint lowered to 0.05 is trusted only when min_fit_constraint allows it."""
+    import island_mapping.core.navigate as nav
+
+    world = l_world()
+    origin = ORIGINS[1]
+    island = Island(1, model_at(world, origin), ModelType.LINE, 1.0, 0.0, origin_truth=origin)
+    sonar = SonarModel(SonarConfig(), seed=4)
+    rng = np.random.default_rng(4)
+    pts = []
+    for k in range(8):
+        th = k * math.pi / 4
+        pose = Pose2D(origin.x, origin.y, origin.theta + th)
+        pts.append(ranges_to_points(sonar.scan(world, pose, rng), sonar.angles_rad + th))
+    points = np.concatenate(pts, axis=0)
+    cfg = NavigateConfig()
+    res, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0), cfg)
+    assert trusted and res.constraint >= cfg.min_fit_constraint  # a corner pins both axes
+
+    real = nav.localize
+
+    def weak(*args: object) -> object:
+        return replace(real(*args), constraint=0.05)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(nav, "localize", weak)
+    _, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0), cfg)
+    assert not trusted
+    _, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0),
+                                    replace(cfg, min_fit_constraint=0.03))
+    assert trusted
+    with pytest.raises(NavigateError, match=r"NavigateConfig\.min_fit_constraint"):
+        NavigateConfig(min_fit_constraint=-0.1)

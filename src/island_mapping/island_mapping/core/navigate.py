@@ -131,6 +131,15 @@ class NavigateConfig:
             "(paper_fig4: an arrival 'localized' 2 m and 120 deg off) [deg]"
         },
     )
+    min_fit_constraint: float = field(
+        default=0.08,
+        metadata={
+            "help": "a fit that constrains the position along some axis less than this "
+            "(smaller eigenvalue of the normalized normal matrix) is no candidate: seen from a "
+            "hallway, a junction's model also fits 2 m sideways and turned 24 deg with a "
+            "smaller residual than at the true pose (paper_fig4, constraint 0.03) [0-0.5]"
+        },
+    )
     max_points: int = field(
         default=400, metadata={"help": "localization uses at most this many points [-]"}
     )
@@ -200,6 +209,7 @@ class NavigateConfig:
             "search_radius_m",
             "search_heading_deg",
             "max_turn_deg",
+            "min_fit_constraint",
             "axis_search_step_m",
             "axis_search_min_constraint",
         ):
@@ -449,7 +459,7 @@ def localize_multi(
         init = Pose2D(estimate.x + dx, estimate.y + dy, wrap_angle(estimate.theta + dth))
         res = localize(island.model, points_robot, init, cfg.localize)
         turned = abs(wrap_angle(res.pose.theta - estimate.theta)) > math.radians(cfg.max_turn_deg)
-        if turned and res.converged:
+        if (turned or res.constraint < cfg.min_fit_constraint) and res.converged:
             res = replace(res, converged=False)
         if best is None or (res.converged, -res.residual_m) > (best.converged, -best.residual_m):
             best = res
