@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
 import pytest
 from island_mapping.core.graph import TopoGraph
+from island_mapping.core.localize import LocalizationResult
 from island_mapping.core.navigate import (
     IslandTracker,
     NavigateConfig,
@@ -243,78 +245,66 @@ def test_the_unconstrained_axis_of_a_corridor_fit_is_the_corridor() -> None:
         NavigateConfig(axis_search_steps=-1)
 
 
-def test_a_fit_turned_far_from_the_estimate_is_not_trusted(monkeypatch: pytest.MonkeyPatch
-                                                           ) -> None:
-    """localize_multi on the L world's corner island: the look-around's points localize
-    (trusted); when every refinement comes back turned 120 deg from the estimate (paper_fig4:
-    an arrival at a + junction 'localized' 2 m and 120 deg off), none is a candidate unless
-    max_turn_deg allows it."""
-    import island_mapping.core.navigate as nav
-
+def _corner_island_and_look(seed: int) -> tuple[Island, np.ndarray]:
+    """The L world's corner island (a hand-made model) and a look-around at its true origin:
+    eight sonar scans turned by 45 deg, as (N, 2) points in the island frame [m]."""
     world = l_world()
     origin = ORIGINS[1]
     island = Island(1, model_at(world, origin), ModelType.LINE, 1.0, 0.0, origin_truth=origin)
-    sonar = SonarModel(SonarConfig(), seed=3)
-    rng = np.random.default_rng(3)
-    pts = []
-    for k in range(8):  # a look-around: eight scans turned by 45 deg, in the island frame
-        th = k * math.pi / 4
-        pose = Pose2D(origin.x, origin.y, origin.theta + th)
-        pts.append(ranges_to_points(sonar.scan(world, pose, rng), sonar.angles_rad + th))
-    points = np.concatenate(pts, axis=0)
-    cfg = NavigateConfig()
-    res, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0), cfg)
-    assert trusted and math.hypot(res.pose.x, res.pose.y) < 0.1
-
-    real = nav.localize
-
-    def turned(*args: object) -> object:
-        r = real(*args)  # type: ignore[arg-type]
-        return replace(r, pose=Pose2D(r.pose.x, r.pose.y, r.pose.theta + math.radians(120)))
-
-    monkeypatch.setattr(nav, "localize", turned)
-    _, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0), cfg)
-    assert not trusted
-    _, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0),
-                                    replace(cfg, max_turn_deg=180.0))
-    assert trusted
-    with pytest.raises(NavigateError, match=r"NavigateConfig\.max_turn_deg"):
-        NavigateConfig(max_turn_deg=-1.0)
-
-
-def test_a_weakly_constrained_fit_is_no_candidate(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A fit that barely pins the position along one axis (localize's own threshold is 0.03)
-    is no candidate for localize_multi: paper_fig4 offline, a look from a hallway 2 m short of
-    a + junction's origin 'localized' 2 m sideways and 24 deg turned with constraint 0.03 and
-    the smallest residual of all fits, and the route was lost. The same look with the
-    fits' constraint lowered to 0.05 is trusted only when min_fit_constraint allows it."""
-    import island_mapping.core.navigate as nav
-
-    world = l_world()
-    origin = ORIGINS[1]
-    island = Island(1, model_at(world, origin), ModelType.LINE, 1.0, 0.0, origin_truth=origin)
-    sonar = SonarModel(SonarConfig(), seed=4)
-    rng = np.random.default_rng(4)
+    sonar = SonarModel(SonarConfig(), seed=seed)
+    rng = np.random.default_rng(seed)
     pts = []
     for k in range(8):
         th = k * math.pi / 4
         pose = Pose2D(origin.x, origin.y, origin.theta + th)
         pts.append(ranges_to_points(sonar.scan(world, pose, rng), sonar.angles_rad + th))
-    points = np.concatenate(pts, axis=0)
+    return island, np.concatenate(pts, axis=0)
+
+
+def _turned_120(r: LocalizationResult) -> LocalizationResult:
+    return replace(r, pose=Pose2D(r.pose.x, r.pose.y, r.pose.theta + math.radians(120)))
+
+
+def _weakly_constrained(r: LocalizationResult) -> LocalizationResult:
+    return replace(r, constraint=0.05)
+
+
+@pytest.mark.parametrize(
+    ("tamper", "rule", "allowing", "bad"),
+    [
+        # paper_fig4: an arrival at a + junction 'localized' 2 m and 120 deg off.
+        (_turned_120, "max_turn_deg", 180.0, -1.0),
+        # paper_fig4 offline: a look from a hallway short of a + junction's origin 'localized'
+        # 2 m sideways and 24 deg turned with constraint 0.03 (localize's own threshold) and
+        # the smallest residual of all fits, and the route was lost.
+        (_weakly_constrained, "min_fit_constraint", 0.03, -0.1),
+    ],
+)
+def test_a_fit_the_estimate_rules_out_is_no_candidate(
+    monkeypatch: pytest.MonkeyPatch,
+    tamper: Callable[[LocalizationResult], LocalizationResult],
+    rule: str,
+    allowing: float,
+    bad: float,
+) -> None:
+    """localize_multi on the L world's corner island: the look-around's points localize
+    (trusted, the corner pins both axes); when every refinement comes back turned 120 deg from
+    the estimate, or constraining the position only weakly, none is a candidate unless the
+    rule allows it."""
+    import island_mapping.core.navigate as nav
+
+    island, points = _corner_island_and_look(seed=3)
     cfg = NavigateConfig()
     res, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0), cfg)
-    assert trusted and res.constraint >= cfg.min_fit_constraint  # a corner pins both axes
+    assert trusted and math.hypot(res.pose.x, res.pose.y) < 0.1
+    assert res.constraint >= cfg.min_fit_constraint
 
     real = nav.localize
-
-    def weak(*args: object) -> object:
-        return replace(real(*args), constraint=0.05)  # type: ignore[arg-type]
-
-    monkeypatch.setattr(nav, "localize", weak)
+    monkeypatch.setattr(nav, "localize", lambda *args: tamper(real(*args)))
     _, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0), cfg)
     assert not trusted
     _, trusted = nav.localize_multi(island, points, Pose2D(0.05, 0.0, 0.0),
-                                    replace(cfg, min_fit_constraint=0.03))
+                                    replace(cfg, **{rule: allowing}))
     assert trusted
-    with pytest.raises(NavigateError, match=r"NavigateConfig\.min_fit_constraint"):
-        NavigateConfig(min_fit_constraint=-0.1)
+    with pytest.raises(NavigateError, match=rf"NavigateConfig\.{rule}"):
+        NavigateConfig(**{rule: bad})  # type: ignore[arg-type]
