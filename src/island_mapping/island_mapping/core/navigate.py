@@ -442,7 +442,8 @@ def localize_multi(
 
     The best result is the converged one with the smallest residual (any result when none
     converged); trusted = it converged with a residual below `max_residual_m`. A fit whose
-    heading left the estimate's by more than `max_turn_deg` counts as not converged.
+    heading left the estimate's by more than `max_turn_deg`, or that constrains the position
+    less than `min_fit_constraint`, counts as not converged.
     """
     r = cfg.search_radius_m
     n = math.floor(r / cfg.search_step_m + 1e-9)
