@@ -911,7 +911,7 @@ class _Attempt:
     leg_length_m: float = 0.0
     legs_done: list[tuple[float, float]] = field(default_factory=list)
     # Where the current leg's scans begin in points, centre_points and near_points.
-    leg_marks: tuple[int, int, int] = (0, 0, 0)
+    leg_marks: tuple[int, ...] = (0, 0, 0)
     # Heading variance of the pose in the anchor frame after the last leg registration, and
     # odometry's relative heading variance then [rad^2].
     heading_var_rad2: float = 0.0
@@ -923,6 +923,11 @@ class _Attempt:
     best_type: ModelType = ModelType.LINE
     model: LineModel | None = None
     outcome: EventKind | None = None  # set when accepted or dismissed
+
+    def point_lists(self) -> tuple[list[FloatArray], list[FloatArray], list[FloatArray]]:
+        """points, centre_points, near_points: the scans kept in the anchor frame (the order
+        of leg_marks)."""
+        return self.points, self.centre_points, self.near_points
 
 
 class IslandBuilder:
@@ -1275,7 +1280,7 @@ class IslandBuilder:
                     return self._drive_line(bearing, lateral, -min(sc.speed_mps, along * 2.0))
                 att.leg += 1
                 att.phase = _LegPhase.TURN
-                att.leg_marks = (len(att.points), len(att.centre_points), len(att.near_points))
+                att.leg_marks = tuple(len(lst) for lst in att.point_lists())
         # All legs done without a decision.
         if att.first or att.best > att.bound:
             self._accept()
@@ -1302,7 +1307,7 @@ class IslandBuilder:
         odometry added since the last registration plus what that one left. Only the heading:
         a partial view constrains a hallway's position along it poorly. Nothing when this is
         the first leg driven or the fit is refused."""
-        i, j, k = att.leg_marks
+        i = att.leg_marks[0]
         if i == 0 or i == len(att.points) or self._star_rel is None:
             return
         model = self._fit(np.concatenate(att.points[:i], axis=0))
@@ -1317,9 +1322,8 @@ class IslandBuilder:
         gain = var / (var + math.radians(self.config.register_sigma_deg) ** 2)
         att.heading_var_rad2, att.odom_var_seen_rad2 = (1.0 - gain) * var, odom_var
         fix = Pose2D(0.0, 0.0, gain * found.theta)
-        att.points[i:] = [_from_frame(p, fix) for p in att.points[i:]]
-        att.centre_points[j:] = [_from_frame(p, fix) for p in att.centre_points[j:]]
-        att.near_points[k:] = [_from_frame(p, fix) for p in att.near_points[k:]]
+        for lst, mark in zip(att.point_lists(), att.leg_marks, strict=True):
+            lst[mark:] = [_from_frame(p, fix) for p in lst[mark:]]
         att.anchor = att.anchor.compose(fix.inverse())
 
     def _evaluate_attempt(self) -> bool:
