@@ -27,6 +27,7 @@ from island_mapping.core.builder import (
     RevisitConfig,
     StampSync,
     StarConfig,
+    _Attempt,
     eq3_bound,
     event_to_dict,
     normalized_measures,
@@ -47,7 +48,7 @@ from island_msgs_py.types import (
 )
 from island_sim.core.robot import OdometryConfig, SimRobot
 from island_sim.core.sonar import SonarConfig, SonarModel, ranges_to_points
-from island_sim.core.world import World
+from island_sim.core.world import World, load_world
 
 from island_msgs_py import json_io
 
@@ -896,6 +897,49 @@ def test_the_peak_search_also_goes_back_into_the_junction_the_robot_left() -> No
     assert classify_place(segs, legs.origin_truth.x, legs.origin_truth.y) is (
         PlaceKind.PLAIN_HALLWAY)
     assert classify_place(segs, back.origin_truth.x, back.origin_truth.y) is PlaceKind.FEATURE
+
+
+# Island 3 of an offline paper_fig4 exploration (seed 8, `peak_ahead_min_gain` 0.1): anchored
+# heading north at (34.998, 20.054), 0.95 m short of the middle crossing's south mouth.
+# Its model in the anchor frame (side walls to x = 1.1, the crossing's far wall near x = 3) and
+# the star legs it drove (bearing [rad], length [m]).
+FIG4_SHORT_OF_MOUTH = (
+    Pose2D(34.9976, 20.0544, 1.5725),
+    [[-5.218, -0.039, -4.705, 2.449],
+    [1.088, 0.933, -1.616, 0.985],
+    [1.102, -1.003, -1.971, -0.885],
+    [2.281, -2.885, 3.222, -0.413],
+    [3.155, -1.214, 3.024, 1.647],
+    [3.275, 0.115, 2.548, 2.3]],
+    [(0.0, 1.17), (math.pi, 1.177), (-math.pi / 2, 0.295)],
+)
+
+
+@pytest.mark.parametrize(("ahead_gain", "moves"), [(0.02, True), (0.1, False)])
+def test_a_smaller_gain_moves_the_origin_ahead_into_the_mouth(
+    ahead_gain: float, moves: bool
+) -> None:
+    """The model's measure rises 9.6 % along the driven ahead leg to the mouth (3.54 -> 3.88 at
+    1.0 m): under peak_min_gain's 10 %, so the island stayed in the plain hallway; with
+    peak_ahead_min_gain 2 % its origin moves ahead into the mouth, a place with walls in two
+    directions, and since the point was driven through, no probe is asked for."""
+    truth, segs, legs_done = FIG4_SHORT_OF_MOUTH
+    b = IslandBuilder(BuilderConfig(peak_ahead_min_gain=ahead_gain))
+    att = _Attempt(anchor=Pose2D(0.0, 0.0, 0.0), anchor_truth=truth, anchor_cov=np.zeros((3, 3)),
+                   epsilon_m=0.5, bound=0.6, first=False, legs_done=list(legs_done))
+    model = LineModel(np.array(segs))
+    (origin, r), far = b._peak_origin(model, att)
+    assert far == (origin, r)  # nothing past the legs to probe
+    r_anchor = b._measure_at(model, np.zeros(2))
+    world = load_world("paper_fig4")
+    assert classify_place(world.segments, truth.x, truth.y) is PlaceKind.PLAIN_HALLWAY
+    if not moves:
+        assert origin == Pose2D(0.0, 0.0, 0.0) and r == r_anchor
+        return
+    assert 0.8 <= origin.x <= 1.17 and origin.y == 0.0
+    assert r_anchor * (1.0 + ahead_gain) < r < r_anchor * (1.0 + BuilderConfig().peak_min_gain)
+    there = truth.compose(origin)
+    assert classify_place(world.segments, there.x, there.y) is PlaceKind.FEATURE
 
 
 class _ProbeFails(IslandBuilder):
