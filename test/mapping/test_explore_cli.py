@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 from pathlib import Path
 
@@ -36,6 +37,19 @@ def test_explore_writes_the_map_figures_recording_and_summary(
     assert summary["collisions"] == 0
     assert abs(summary["sim_seconds"] - 150.0) < 0.5
     assert set(summary["island_places"]) == {str(i.id) for i in islands}
+    # Routes are reported per edge: a route succeeds only through edges that each succeeded,
+    # chained from its source to its target.
+    per_route = summary["routes"]["per_route"]
+    assert len(per_route) == summary["routes"]["pairs"] >= 1
+    assert any(r["islands_success"] for r in per_route)
+    for r in per_route:
+        legs = r["islands_edges"]
+        assert all(e["localized"] and e["error_m"] <= 0.25 for e in legs if e["success"])
+        assert all(a["target"] == b["source"] for a, b in itertools.pairwise(legs))
+        if r["islands_success"]:
+            assert legs and all(e["success"] for e in legs)
+            assert (legs[0]["source"], legs[-1]["target"]) == (r["source"], r["target"])
+            assert r["islands_final_error_m"] <= 0.25
     # The exports describe the same graph.
     g = TopoGraph.from_parts(islands, edges)
     assert TopoGraph.from_geojson(json.loads((out / "graph.geojson").read_text())).to_json() == (

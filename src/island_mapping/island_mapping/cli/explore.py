@@ -30,7 +30,7 @@ from island_mapping.cli import CliError
 from island_mapping.cli.params import parse_assignments, parse_node_assignments
 from island_mapping.cli.progress import ProgressBar
 from island_mapping.core.graph import TopoGraph
-from island_mapping.core.navigate import NavigateError, SimSetup, evaluate_routes
+from island_mapping.core.navigate import EdgeResult, NavigateError, SimSetup, evaluate_routes
 from island_mapping.core.placement import (
     PlaceKind,
     classify_place,
@@ -104,10 +104,22 @@ def _route_summary(graph: TopoGraph, setup: SimSetup, events: list[dict[str, Any
         "global_odometry_success_rate": ev.baseline_success_rate,
         "per_route": [
             {"source": a, "target": b, "islands_success": r.success,
-             "global_odometry_success": base.success}
+             "global_odometry_success": base.success,
+             "islands_final_error_m": round(r.final_error_m, 3),
+             "islands_final_error_deg": round(r.final_error_deg, 2),
+             "global_odometry_final_error_m": round(base.final_error_m, 3),
+             "islands_edges": [_edge_summary(e) for e in r.edges]}
             for (a, b), r, base in zip(ev.pairs, ev.islands, ev.baseline, strict=True)
         ],
     }
+
+
+def _edge_summary(e: EdgeResult) -> dict[str, Any]:
+    """One followed edge: its strategy, whether the arrival localized, and how far that fit was
+    from the true pose in the target island's frame."""
+    return {"source": e.source, "target": e.target, "strategy": e.strategy,
+            "localized": e.localized, "error_m": round(e.error_m, 3),
+            "error_deg": round(e.error_deg, 2), "success": e.success}
 
 
 def run(args: argparse.Namespace) -> int:
