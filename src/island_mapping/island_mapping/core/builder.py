@@ -1466,11 +1466,11 @@ class IslandBuilder:
             for d, p, r in self._along(model, np.zeros(2), u, reach, length):
                 if d <= length and r > leg_floor and r > legs[1]:
                     legs = (p, r)
-                if r > far[1]:
+                if d > length and r > far[1]:
                     far = (p, r)
         floor = anchor[1] * (1.0 + cfg.peak_min_gain)
-        # A far peak that beats the legs' lies past them (a leg point above floor is a legs
-        # candidate too): it is probed; otherwise the legs' choice is the origin.
+        # The peak past the driven legs is probed only where it beats both the anchor by
+        # peak_min_gain and the legs' choice; otherwise the legs' choice is the origin.
         return legs, (far if far[1] > floor and far[1] > legs[1] else legs)
 
     def _along(
