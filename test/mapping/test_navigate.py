@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from island_mapping.core.graph import TopoGraph
-from island_mapping.core.localize import LocalizationResult
+from island_mapping.core.localize import LocalizationResult, localize
 from island_mapping.core.navigate import (
     IslandTracker,
     NavigateConfig,
@@ -231,6 +231,51 @@ def test_an_overshooting_strategy_is_recovered_by_searching_along_the_hallway() 
         assert on.success, on
         assert on.edges[0].localized and on.edges[0].error_m < 0.25
         assert on.final_error_m < 0.25
+
+
+# Islands 6 and 7 of a live 900 s `islands explore --world paper_fig4 --seed 10 --builder-param
+# builder.peak_ahead_min_gain=0.02` run. Island 6's origin is 0.54 m into the middle crossing
+# from its west mouth; island 7 is at the east corridor's dead end.
+FIG4_CROSSING_6 = (
+    Pose2D(34.537, 22.003, 0.0013),
+    [[-0.335, 0.992, -1.734, 0.914], [-0.335, -0.999, -1.803, -0.936],
+     [1.368, -1.337, 1.593, -0.827], [1.615, 0.854, 1.274, 1.377]],
+)
+FIG4_DEAD_END_7 = (
+    Pose2D(49.189, 22.000, -3.0778),
+    [[-0.81, -0.861, -0.655, 1.348], [0.116, 0.761, -0.567, 1.232],
+     [0.806, 1.022, -0.707, 0.958], [1.61, -1.078, -0.869, -0.869],
+     [1.945, 0.776, -0.694, 1.056]],
+)
+
+
+def test_a_look_too_sparse_to_fit_searches_along_the_arrival_heading() -> None:
+    """In a crossing's middle the sonar ring hears few echoes (the walls meet the beams at
+    grazing incidence, the corridors run out of range), so the look at island 6's true origin
+    fits nowhere near it. The search along the weak axis of that fit then went the wrong way
+    (routes 7 -> 6: 2 of 4 lost, 16 of 20 in the run); when the look does not fit near the
+    estimate, the search starts from the estimate along the heading the robot arrived on."""
+    world = load_world("paper_fig4")
+    islands = [
+        Island(i, LineModel(np.array(m, float)), ModelType.LINE, 1.0, 0.0, origin_truth=o)
+        for i, (o, m) in ((6, FIG4_CROSSING_6), (7, FIG4_DEAD_END_7))
+    ]
+    graph = with_reverse_edges(TopoGraph.from_parts(
+        islands, [Edge(6, 7, ControlStrategy.parse("Go 1470, Rot 181, Go 2"), 15.9)]))
+    # The place: a full turn at the true origin hears a fraction of what a hallway gives.
+    sonar, rng = SonarModel(SonarConfig()), np.random.default_rng(0)
+    origin = FIG4_CROSSING_6[0]
+    pts = [ranges_to_points(sonar.scan(world, origin.compose(Pose2D(0.0, 0.0, th)), rng),
+                            sonar.angles_rad, Pose2D(0.0, 0.0, th))
+           for th in np.linspace(0.0, 2.0 * math.pi, 120, endpoint=False)]
+    look = np.concatenate(pts, axis=0)
+    assert len(look) < 300  # a look-around in a hallway: 800-1200 points
+    cfg = NavigateConfig()
+    assert not localize(islands[0].model, look, Pose2D(0.0, 0.0, 0.0), cfg.localize).converged
+    for seed in (100, 101, 103):
+        res = follow_route(graph, [7, 6], SimSetup(world), rng=np.random.default_rng(seed))
+        assert res.success, res
+        assert res.edges[0].localized and res.edges[0].error_m < cfg.success_tol_m
 
 
 def test_the_unconstrained_axis_of_a_corridor_fit_is_the_corridor() -> None:

@@ -497,7 +497,14 @@ def _localize_and_dock(sim: _Sim, island: Island, estimate: Pose2D) -> tuple[boo
         # Search from the fit nearest the estimate: the smallest residual may be a wrong
         # heading basin (paper_fig4 edge 6->7: 2 of 12 starts failed so, 0 of 12 from here).
         near = localize(island.model, thin_evenly(pts, c.max_points), estimate, c.localize)
-        res, trusted = _search_along_axis(sim, island, pts, near)
+        if near.converged:
+            res, trusted = _search_along_axis(sim, island, pts, near)
+        else:
+            # The look did not even fit near the estimate (a crossing's middle, where sonar
+            # beams meet the walls at grazing incidence: 16 echoes in a full turn): search
+            # from the estimate along the heading the robot arrived on, a hallway's axis.
+            res, trusted = _search_along_axis(
+                sim, island, pts, replace(near, pose=estimate), axis_rad=estimate.theta)
     err_m, err_deg = _pose_error(res.pose, _truth_in(island, sim.robot.true_pose))
     first = (trusted, err_m, err_deg)
     if not trusted:
@@ -537,7 +544,8 @@ def unconstrained_axis_rad(island: Island, points_robot: FloatArray, pose: Pose2
 
 
 def _search_along_axis(
-    sim: _Sim, island: Island, pts: FloatArray, fit: LocalizationResult
+    sim: _Sim, island: Island, pts: FloatArray, fit: LocalizationResult,
+    axis_rad: float | None = None,
 ) -> tuple[LocalizationResult, bool]:
     """After an untrusted localization: look around again at points along its weak axis.
 
@@ -552,7 +560,9 @@ def _search_along_axis(
     c = sim.cfg
     at = sim.robot.odom_pose
     origin_odom = at.compose(fit.pose.inverse())  # where the fit puts the island origin
-    axis = origin_odom.theta + unconstrained_axis_rad(island, pts, fit.pose, c.localize)
+    if axis_rad is None:  # the fit's weakest direction [rad, island frame]
+        axis_rad = unconstrained_axis_rad(island, pts, fit.pose, c.localize)
+    axis = origin_odom.theta + axis_rad
     best, trusted = fit, False
     for k in range(1, c.axis_search_steps + 1):
         for sign in (1.0, -1.0):
