@@ -905,12 +905,9 @@ def test_the_peak_search_also_goes_back_into_the_junction_the_robot_left() -> No
 # the star legs it drove (bearing [rad], length [m]).
 FIG4_SHORT_OF_MOUTH = (
     Pose2D(34.9976, 20.0544, 1.5725),
-    [[-5.218, -0.039, -4.705, 2.449],
-    [1.088, 0.933, -1.616, 0.985],
-    [1.102, -1.003, -1.971, -0.885],
-    [2.281, -2.885, 3.222, -0.413],
-    [3.155, -1.214, 3.024, 1.647],
-    [3.275, 0.115, 2.548, 2.3]],
+    [[-5.218, -0.039, -4.705, 2.449], [1.088, 0.933, -1.616, 0.985],
+     [1.102, -1.003, -1.971, -0.885], [2.281, -2.885, 3.222, -0.413],
+     [3.155, -1.214, 3.024, 1.647], [3.275, 0.115, 2.548, 2.3]],
     [(0.0, 1.17), (math.pi, 1.177), (-math.pi / 2, 0.295)],
 )
 
@@ -929,7 +926,7 @@ def test_a_smaller_gain_moves_the_origin_ahead_into_the_mouth(
                    epsilon_m=0.5, bound=0.6, first=False, legs_done=list(legs_done))
     model = LineModel(np.array(segs))
     (origin, r), far = b._peak_origin(model, att)
-    assert far == (origin, r)  # nothing past the legs to probe
+    assert far == (origin, r)  # no free range ahead recorded: no origin past the legs
     r_anchor = b._measure_at(model, np.zeros(2))
     world = load_world("paper_fig4")
     assert classify_place(world.segments, truth.x, truth.y) is PlaceKind.PLAIN_HALLWAY

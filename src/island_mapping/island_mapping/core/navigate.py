@@ -556,6 +556,7 @@ def _search_along_axis(
     from the fit's prediction; it accepts the first trusted fit whose constraint is at least
     `axis_search_min_constraint` (points on a plain hallway alias along it with a constraint
     just above the convergence threshold, so a search needs a clearly constrained fit).
+    `axis_rad` [rad, island frame]: search along this direction instead of the fit's weakest.
     """
     c = sim.cfg
     at = sim.robot.odom_pose
