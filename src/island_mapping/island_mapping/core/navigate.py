@@ -171,6 +171,14 @@ class NavigateConfig:
             "constraint (smaller eigenvalue of the normalized normal matrix) [0-0.5]"
         },
     )
+    sparse_look_points: int = field(
+        default=300,
+        metadata={
+            "help": "a look-around with fewer echo points than this (a hallway gives 800-1200; "
+            "the middle of a crossing, where the beams meet the walls at grazing incidence, "
+            "16-150) has no meaningful weak axis: the search goes along the arrival heading [-]"
+        },
+    )
     dock_tol_m: float = field(
         default=0.05, metadata={"help": "docking at an origin ends within this distance [m]"}
     )
@@ -219,6 +227,10 @@ class NavigateConfig:
         if self.axis_search_steps < 0:
             raise NavigateError(
                 f"NavigateConfig.axis_search_steps: must be >= 0, got {self.axis_search_steps}"
+            )
+        if self.sparse_look_points < 0:
+            raise NavigateError(
+                f"NavigateConfig.sparse_look_points: must be >= 0, got {self.sparse_look_points}"
             )
         if self.dock_attempts < 1:
             raise NavigateError(
@@ -497,12 +509,12 @@ def _localize_and_dock(sim: _Sim, island: Island, estimate: Pose2D) -> tuple[boo
         # Search from the fit nearest the estimate: the smallest residual may be a wrong
         # heading basin (paper_fig4 edge 6->7: 2 of 12 starts failed so, 0 of 12 from here).
         near = localize(island.model, thin_evenly(pts, c.max_points), estimate, c.localize)
-        if near.converged:
+        if pts.shape[0] >= c.sparse_look_points:
             res, trusted = _search_along_axis(sim, island, pts, near)
         else:
-            # The look did not even fit near the estimate (a crossing's middle, where sonar
-            # beams meet the walls at grazing incidence: 16 echoes in a full turn): search
-            # from the estimate along the heading the robot arrived on, a hallway's axis.
+            # The look heard too little to fit (a crossing's middle: 16 echoes in a full turn)
+            # and its fit's weak axis is noise: search from the estimate along the heading
+            # the robot arrived on, a hallway's axis.
             res, trusted = _search_along_axis(
                 sim, island, pts, replace(near, pose=estimate), axis_rad=estimate.theta)
     err_m, err_deg = _pose_error(res.pose, _truth_in(island, sim.robot.true_pose))
