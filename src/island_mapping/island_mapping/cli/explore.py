@@ -15,6 +15,7 @@ island localizer, topological graph server, recorder), then writes to --out:
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -117,9 +118,8 @@ def _route_summary(graph: TopoGraph, setup: SimSetup, events: list[dict[str, Any
 def _edge_summary(e: EdgeResult) -> dict[str, Any]:
     """One followed edge: its strategy, whether the arrival localized, and how far that fit was
     from the true pose in the target island's frame."""
-    return {"source": e.source, "target": e.target, "strategy": e.strategy,
-            "localized": e.localized, "error_m": round(e.error_m, 3),
-            "error_deg": round(e.error_deg, 2), "success": e.success}
+    return {**dataclasses.asdict(e), "error_m": round(e.error_m, 3),
+            "error_deg": round(e.error_deg, 2)}
 
 
 def run(args: argparse.Namespace) -> int:

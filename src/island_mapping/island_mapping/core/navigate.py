@@ -508,15 +508,15 @@ def _localize_and_dock(sim: _Sim, island: Island, estimate: Pose2D) -> tuple[boo
     if not trusted and c.axis_search_step_m > 0 and c.axis_search_steps > 0:
         # Search from the fit nearest the estimate: the smallest residual may be a wrong
         # heading basin (paper_fig4 edge 6->7: 2 of 12 starts failed so, 0 of 12 from here).
-        near = localize(island.model, thin_evenly(pts, c.max_points), estimate, c.localize)
         if pts.shape[0] >= c.sparse_look_points:
+            near = localize(island.model, thin_evenly(pts, c.max_points), estimate, c.localize)
             res, trusted = _search_along_axis(sim, island, pts, near)
         else:
             # The look heard too little to fit (a crossing's middle: 16 echoes in a full turn)
-            # and its fit's weak axis is noise: search from the estimate along the heading
-            # the robot arrived on, a hallway's axis.
+            # and a fit's weak axis is noise: search from the estimate along the heading the
+            # robot arrived on, a hallway's axis (no fit from the estimate is needed for that).
             res, trusted = _search_along_axis(
-                sim, island, pts, replace(near, pose=estimate), axis_rad=estimate.theta)
+                sim, island, pts, replace(res, pose=estimate), axis_rad=estimate.theta)
     err_m, err_deg = _pose_error(res.pose, _truth_in(island, sim.robot.true_pose))
     first = (trusted, err_m, err_deg)
     if not trusted:
