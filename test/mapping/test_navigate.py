@@ -235,6 +235,19 @@ def test_an_overshooting_strategy_is_recovered_by_searching_along_the_hallway() 
         assert on.final_error_m < 0.25
 
 
+def _look_at(world: World, origin: Pose2D, n_scans: int, seed: int) -> np.ndarray:
+    """A look-around at `origin`: n_scans sonar scans turned evenly through a full circle, as
+    (N, 2) points in the origin's frame [m]."""
+    sonar = SonarModel(SonarConfig(), seed=seed)
+    rng = np.random.default_rng(seed)
+    pts = []
+    for k in range(n_scans):
+        th = k * 2.0 * math.pi / n_scans
+        pose = Pose2D(origin.x, origin.y, origin.theta + th)
+        pts.append(ranges_to_points(sonar.scan(world, pose, rng), sonar.angles_rad + th))
+    return np.concatenate(pts, axis=0)
+
+
 # Islands 6 and 7 of a live 900 s `islands explore --world paper_fig4 --seed 10 --builder-param
 # builder.peak_ahead_min_gain=0.02` run. Island 6's origin is 0.54 m into the middle crossing
 # from its west mouth; island 7 is at the east corridor's dead end.
@@ -266,12 +279,7 @@ def test_a_look_too_sparse_to_fit_searches_along_the_arrival_heading() -> None:
     graph = with_reverse_edges(TopoGraph.from_parts(
         islands, [Edge(6, 7, ControlStrategy.parse("Go 1470, Rot 181, Go 2"), 15.9)]))
     # The place: a full turn at the true origin hears a fraction of what a hallway gives.
-    sonar, rng = SonarModel(SonarConfig()), np.random.default_rng(0)
-    origin = FIG4_CROSSING_6[0]
-    pts = [ranges_to_points(sonar.scan(world, origin.compose(Pose2D(0.0, 0.0, th)), rng),
-                            sonar.angles_rad, Pose2D(0.0, 0.0, th))
-           for th in np.linspace(0.0, 2.0 * math.pi, 120, endpoint=False)]
-    look = np.concatenate(pts, axis=0)
+    look = _look_at(world, FIG4_CROSSING_6[0], 120, seed=0)
     cfg = NavigateConfig()
     assert len(look) < cfg.sparse_look_points  # a look-around in a hallway: 800-1200 points
     assert not localize(islands[0].model, look, Pose2D(0.0, 0.0, 0.0), cfg.localize).converged
@@ -302,14 +310,7 @@ def _corner_island_and_look(seed: int) -> tuple[Island, np.ndarray]:
     world = l_world()
     origin = ORIGINS[1]
     island = Island(1, model_at(world, origin), ModelType.LINE, 1.0, 0.0, origin_truth=origin)
-    sonar = SonarModel(SonarConfig(), seed=seed)
-    rng = np.random.default_rng(seed)
-    pts = []
-    for k in range(8):
-        th = k * math.pi / 4
-        pose = Pose2D(origin.x, origin.y, origin.theta + th)
-        pts.append(ranges_to_points(sonar.scan(world, pose, rng), sonar.angles_rad + th))
-    return island, np.concatenate(pts, axis=0)
+    return island, _look_at(world, origin, 8, seed)
 
 
 def _turned_120(r: LocalizationResult) -> LocalizationResult:
