@@ -868,13 +868,15 @@ def test_the_peak_search_also_goes_back_into_the_junction_the_robot_left() -> No
     (paper_fig4: an island 2.6 m past the middle crossing, heading away from it). The back
     leg's peak stays in the plain corridor; with the straight path the follower reported
     (`Go 180`: free space behind the anchor) the search goes on back along it, and the
-    probed origin lands in the crossing's mouth. Without a report, or with peak_behind off,
-    nothing behind the back leg is searched."""
+    probed origin lands in the crossing's mouth. So it does with peak_behind off under the
+    default origin_feature_radius_m 3, because the model shows a plain hallway at the legs'
+    origin. Without a report, or with both off, nothing behind the back leg is searched."""
     world = cross_world()
 
-    def island(ahead_m: float, strategy: str | None, behind: bool = True
-               ) -> tuple[Island, IslandBuilder]:
+    def island(ahead_m: float, strategy: str | None, behind: bool = True,
+               feature_radius_m: float = 0.0) -> tuple[Island, IslandBuilder]:
         b = IslandBuilder(BuilderConfig(peak_ahead_m=ahead_m, peak_behind=behind,
+                                        origin_feature_radius_m=feature_radius_m,
                                         bound_floor=0.05, build_first_island=False,
                                         revisit=RevisitConfig(enabled=False)))
         if strategy is not None:
@@ -889,14 +891,22 @@ def test_the_peak_search_also_goes_back_into_the_junction_the_robot_left() -> No
     unreported, b0 = island(3.0, None)
     off, _ = island(3.0, "Go 180", behind=False)
     back, b1 = island(3.0, "Go 180")
+    # peak_behind off, but the model shows a plain hallway at the legs' origin (the default)
+    plain_rule, b2 = island(3.0, "Go 180", behind=False, feature_radius_m=3.0)
     assert b0.probes == {"kept": 0, "fell_back": 0} and b1.probes["kept"] == 1
+    assert b2.probes["kept"] == 1
     assert legs.origin_truth is not None and back.origin_truth is not None
+    assert plain_rule.origin_truth is not None
     assert unreported.origin_truth == legs.origin_truth == off.origin_truth
     assert back.origin_truth.x < legs.origin_truth.x - 0.5
+    assert plain_rule.origin_truth.x < legs.origin_truth.x - 0.5
     segs = world.segments
     assert classify_place(segs, legs.origin_truth.x, legs.origin_truth.y) is (
         PlaceKind.PLAIN_HALLWAY)
-    assert classify_place(segs, back.origin_truth.x, back.origin_truth.y) is PlaceKind.FEATURE
+    for moved in (back, plain_rule):
+        assert moved.origin_truth is not None
+        assert classify_place(segs, moved.origin_truth.x, moved.origin_truth.y) is (
+            PlaceKind.FEATURE)
 
 
 # Island 3 of an offline paper_fig4 exploration (seed 8, `peak_ahead_min_gain` 0.1): anchored
@@ -912,16 +922,22 @@ FIG4_SHORT_OF_MOUTH = (
 )
 
 
-@pytest.mark.parametrize(("ahead_gain", "moves"), [(0.02, True), (0.1, False)])
-def test_a_smaller_gain_moves_the_origin_ahead_into_the_mouth(
-    ahead_gain: float, moves: bool
+@pytest.mark.parametrize(("ahead_gain", "feature_radius_m", "moves"), [
+    (0.02, 0.0, True),  # a gain the 9.6 % rise passes
+    (0.1, 0.0, False),  # neither rule: the origin stays in the hallway
+    (0.1, 3.0, True),  # the default: the model shows a plain hallway at the anchor
+])
+def test_the_origin_moves_ahead_into_the_mouth_by_gain_or_off_a_plain_hallway(
+    ahead_gain: float, feature_radius_m: float, moves: bool
 ) -> None:
     """The model's measure rises 9.6 % along the driven ahead leg to the mouth (3.54 -> 3.88 at
-    1.0 m): under peak_min_gain's 10 %, so the island stayed in the plain hallway; with
-    peak_ahead_min_gain 2 % its origin moves ahead into the mouth, a place with walls in two
-    directions, and since the point was driven through, no probe is asked for."""
+    1.0 m): under peak_min_gain's 10 %. With peak_ahead_min_gain 2 % the origin moves ahead
+    into the mouth; so it does with origin_feature_radius_m 3, because within 3 m of the
+    anchor the model shows only the hallway's parallel walls and at the mouth the crossing's
+    far wall too. Either way the point was driven through: no probe is asked for."""
     truth, segs, legs_done = FIG4_SHORT_OF_MOUTH
-    b = IslandBuilder(BuilderConfig(peak_ahead_min_gain=ahead_gain))
+    b = IslandBuilder(BuilderConfig(peak_ahead_min_gain=ahead_gain,
+                                    origin_feature_radius_m=feature_radius_m))
     att = _Attempt(anchor=Pose2D(0.0, 0.0, 0.0), anchor_truth=truth, anchor_cov=np.zeros((3, 3)),
                    epsilon_m=0.5, bound=0.6, first=False, legs_done=list(legs_done))
     model = LineModel(np.array(segs))
@@ -930,13 +946,36 @@ def test_a_smaller_gain_moves_the_origin_ahead_into_the_mouth(
     r_anchor = b._measure_at(model, np.zeros(2))
     world = load_world("paper_fig4")
     assert classify_place(world.segments, truth.x, truth.y) is PlaceKind.PLAIN_HALLWAY
+    assert classify_place(model.segments, 0.0, 0.0) is PlaceKind.PLAIN_HALLWAY
     if not moves:
         assert origin == Pose2D(0.0, 0.0, 0.0) and r == r_anchor
         return
     assert 0.8 <= origin.x <= 1.17 and origin.y == 0.0
-    assert r_anchor * (1.0 + ahead_gain) < r < r_anchor * (1.0 + BuilderConfig().peak_min_gain)
+    assert r_anchor < r < r_anchor * (1.0 + BuilderConfig().peak_min_gain)
+    assert classify_place(model.segments, origin.x, origin.y) is PlaceKind.FEATURE
     there = truth.compose(origin)
     assert classify_place(world.segments, there.x, there.y) is PlaceKind.FEATURE
+
+
+def test_an_origin_off_a_plain_hallway_must_still_pass_the_acceptance_bound() -> None:
+    """The move off a plain hallway takes only points whose measure passes the attempt's
+    bound (the island must stay acceptable there): with the bound above every driven point's
+    measure, the origin stays at the anchor. An anchor the model shows at a junction is
+    chosen as without the rule."""
+    _, segs, legs_done = FIG4_SHORT_OF_MOUTH
+    b = IslandBuilder(BuilderConfig())
+    model = LineModel(np.array(segs))
+    r_anchor = b._measure_at(model, np.zeros(2))
+    att = _Attempt(anchor=Pose2D(0.0, 0.0, 0.0), anchor_truth=None, anchor_cov=np.zeros((3, 3)),
+                   epsilon_m=0.5, bound=2.0 * r_anchor, first=False, legs_done=list(legs_done))
+    (origin, r), _ = b._peak_origin(model, att)
+    assert origin == Pose2D(0.0, 0.0, 0.0) and r == r_anchor
+    at_mouth = LineModel(model.segments - np.array([1.0, 0.0, 1.0, 0.0]))  # anchored there
+    assert classify_place(at_mouth.segments, 0.0, 0.0) is PlaceKind.FEATURE
+    low = _Attempt(anchor=Pose2D(0.0, 0.0, 0.0), anchor_truth=None, anchor_cov=np.zeros((3, 3)),
+                   epsilon_m=0.5, bound=0.0, first=False, legs_done=list(legs_done))
+    off = IslandBuilder(BuilderConfig(origin_feature_radius_m=0.0))
+    assert b._peak_origin(at_mouth, low) == off._peak_origin(at_mouth, low)
 
 
 class _ProbeFails(IslandBuilder):
@@ -1091,18 +1130,25 @@ def test_each_star_leg_is_registered_onto_the_model_of_the_legs_before() -> None
         BuilderConfig(register_sigma_deg=0.0)
 
 
-def test_a_probe_that_passes_climbs_on_to_the_peak_its_look_reveals() -> None:
+@pytest.mark.parametrize(("climbs", "feature_radius_m"), [(1, 0.0), (0, 3.0)])
+def test_a_probe_that_passes_climbs_on_to_the_peak_its_look_reveals(
+    climbs: int, feature_radius_m: float
+) -> None:
     """Stalled 2.75 m before the mouth, the star's model ends short of the crossing: the first
     probe stops in the plain corridor. Its look completes the model, whose peak lies further
-    on: a second probe takes the origin to the crossing's mouth with probe_climbs 1; with 0
-    (the default) it stays in the corridor. Odometry is exact here and the legs are not
-    registered: the second look's fits agree within 3.9 deg of the 4 the check allows, a
-    narrow pass that the 0.003 deg a registration of the legs turns them by already tips
-    (then the fits spread 9.6 deg and the origin stays at the first probe)."""
+    on: a second probe takes the origin to the crossing's mouth with probe_climbs 1, or with
+    none (the default) because the look's model still shows a plain hallway at the first
+    probe (origin_feature_radius_m 3, the default); with neither, it stays in the corridor.
+    Odometry is exact here and the legs are not registered: the second look's fits agree
+    within 3.9 deg of the 4 the check allows, a narrow pass that the 0.003 deg a registration
+    of the legs turns them by already tips (then the fits spread 9.6 deg and the origin stays
+    at the first probe)."""
     world = cross_world()
     once, anchor0, _, run0 = _island_at_crossing(3.0, stop_x=-4.0, probe_climbs=0,
+                                                 origin_feature_radius_m=0.0,
                                                  register_legs=False)
-    twice, anchor, origin, run = _island_at_crossing(3.0, stop_x=-4.0, probe_climbs=1,
+    twice, anchor, origin, run = _island_at_crossing(3.0, stop_x=-4.0, probe_climbs=climbs,
+                                                     origin_feature_radius_m=feature_radius_m,
                                                      register_legs=False)
     assert anchor == anchor0
     assert run0.builder.probes == {"kept": 1, "fell_back": 0}

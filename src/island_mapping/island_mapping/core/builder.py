@@ -68,6 +68,7 @@ from island_mapping.core.lines import (
 )
 from island_mapping.core.localize import LocalizeConfig, Solver, localize
 from island_mapping.core.measure import MeasureConfig, evaluate_models
+from island_mapping.core.placement import PlaceKind, PlacementConfig, classify_place
 from island_msgs_py import json_io
 
 # A covariance difference below this is numerical noise [m^2].
@@ -564,6 +565,21 @@ class BuilderConfig:
             "a false recognition and a weakly localizable island; reproduced by a rerun) [-]"
         },
     )
+    origin_feature_radius_m: float = field(
+        default=3.0,
+        metadata={
+            "help": "when the origin the peak search chose sees, in the island's own model, "
+            "only parallel walls within this distance (a plain hallway: nothing fixes the "
+            "position along it), move it to the best point along the driven legs that sees "
+            "walls in two directions and still passes the acceptance bound; failing that, "
+            "probe the best such point past the legs (ahead, or back along the straight path "
+            "the robot came by, as peak_behind would: an attempt started 1-3 m past a "
+            "junction); after a probe whose look's model still shows a plain hallway at the probed "
+            "origin, climb once on to the peak further on (as probe_climbs 1 would). The same "
+            "rule as the evaluation's placement check, on the sonar model instead of the "
+            "world. 0 = off [m]"
+        },
+    )
     verify_localization: bool = field(
         default=True,
         metadata={
@@ -658,6 +674,7 @@ class BuilderConfig:
             "peak_min_gain",
             "peak_ahead_min_gain",
             "peak_ahead_m",
+            "origin_feature_radius_m",
             "probe_turn_deg",
             "probe_agree_deg",
         ):
@@ -1450,28 +1467,69 @@ class IslandBuilder:
         measure): along the driven star legs, and also past the ahead leg (and, with
         peak_behind, past the back leg along the straight path that led to the anchor) up to
         peak_ahead_m; each the anchor itself unless its peak beats it by peak_min_gain
-        (peak_ahead_min_gain along the driven ahead leg)."""
+        (peak_ahead_min_gain along the driven ahead leg). Where the model shows a plain
+        hallway at the origin so chosen, _off_plain_hallway chooses again (also past the back
+        leg)."""
         cfg = self.config
         anchor = (Pose2D(0.0, 0.0, 0.0), self._measure_at(model, np.zeros(2)))
         legs, far = anchor, anchor
+        driven, past = [anchor], []  # candidates along the legs, and past them
         for bearing, length in att.legs_done:
             gain = cfg.peak_ahead_min_gain if bearing == 0.0 else cfg.peak_min_gain
             leg_floor = anchor[1] * (1.0 + gain)
-            reach = length
+            reach, behind = length, bearing == math.pi
             if bearing == 0.0:
                 reach = max(length, min(cfg.peak_ahead_m, att.ahead_free_m - cfg.star.clearance_m))
-            elif bearing == math.pi and cfg.peak_behind:  # the way it came: free
-                reach = max(length, min(cfg.peak_ahead_m, att.behind_free_m))
+            elif behind and (cfg.peak_behind or cfg.origin_feature_radius_m > 0.0):
+                reach = max(length, min(cfg.peak_ahead_m, att.behind_free_m))  # came along it
             u = np.array([math.cos(bearing), math.sin(bearing)])
             for d, p, r in self._along(model, np.zeros(2), u, reach, length):
-                if d <= length and r > leg_floor and r > legs[1]:
-                    legs = (p, r)
-                if d > length and r > far[1]:
+                if d <= length:
+                    driven.append((p, r))
+                    if r > leg_floor and r > legs[1]:
+                        legs = (p, r)
+                    continue
+                past.append((p, r))
+                if r > far[1] and (cfg.peak_behind or not behind):
                     far = (p, r)
         floor = anchor[1] * (1.0 + cfg.peak_min_gain)
         # The peak past the driven legs is probed only where it beats both the anchor by
         # peak_min_gain and the legs' choice; otherwise the legs' choice is the origin.
+        if self._plain_hallway(model, legs[0]):
+            legs, off = self._off_plain_hallway(model, legs, driven, past, att.bound)
+            if off is not None:
+                return legs, off
         return legs, (far if far[1] > floor and far[1] > legs[1] else legs)
+
+    def _off_plain_hallway(
+        self,
+        model: LineModel,
+        chosen: tuple[Pose2D, float],
+        driven: list[tuple[Pose2D, float]],
+        past: list[tuple[Pose2D, float]],
+        bound: float,
+    ) -> tuple[tuple[Pose2D, float], tuple[Pose2D, float] | None]:
+        """Choosing again where the model shows a plain hallway at the `chosen` origin: (the
+        best of the `driven` candidates (origin, measure) the model does not show in one and
+        whose measure passes the attempt's `bound`, None: the usual choice past the legs);
+        failing that, (`chosen`, the best such candidate `past` the legs, to probe); failing
+        that, (`chosen`, None)."""
+        def ok(cands: list[tuple[Pose2D, float]]) -> list[tuple[Pose2D, float]]:
+            return [c for c in cands if c[1] > bound and not self._plain_hallway(model, c[0])]
+
+        on_legs = ok(driven)
+        if on_legs:
+            return max(on_legs, key=lambda c: c[1]), None
+        beyond = ok(past)
+        return chosen, (max(beyond, key=lambda c: c[1]) if beyond else None)
+
+    def _plain_hallway(self, model: LineModel, p: Pose2D) -> bool:
+        """Does `model` show a plain hallway at p (anchor frame): only parallel walls within
+        origin_feature_radius_m? Never with the radius 0 (the check off)."""
+        radius = self.config.origin_feature_radius_m
+        return radius > 0.0 and classify_place(
+            model.segments, p.x, p.y, PlacementConfig(radius_m=radius)
+        ) is PlaceKind.PLAIN_HALLWAY
 
     def _along(
         self, model: LineModel, start: FloatArray, u: FloatArray, reach_m: float, free_m: float
@@ -1531,7 +1589,11 @@ class IslandBuilder:
             return 0.0, 0.0
         att.points.append(look)
         here = self._measure_at(model, np.array([pr.shift.x, pr.shift.y]))
-        on = self._climb(model, pr.shift, here) if pr.climbs < self.config.probe_climbs else None
+        # One more probe, on from here, when the look's model still shows a plain hallway here
+        # (the star's model ended 1-2 m short of a corner or a T) or while climbs are allowed.
+        climb = pr.climbs < self.config.probe_climbs or (
+            pr.climbs == 0 and self._plain_hallway(model, pr.shift))
+        on = self._climb(model, pr.shift, here) if climb else None
         if on is not None:  # the completed model peaks further on: probe there too
             att.probe = _Probe(model, on[0], on[1], pr.shift, here, model, pr.climbs + 1)
             return 0.0, 0.0

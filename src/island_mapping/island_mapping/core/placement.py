@@ -1,6 +1,7 @@
 """Where did the islands land? An independent geometric check against the world's walls.
 
-Used only for evaluation (it needs the simulator's ground truth): the builder never sees it.
+Evaluation runs it on the simulator's walls (ground truth the builder never sees); the
+builder runs the same rule on its own sonar line model (BuilderConfig.origin_feature_radius_m).
 A place is classified by the walls *visible* from it within `radius_m` (rays every
 `angular_res_deg`, first hit only, so walls behind walls do not count):
 
