@@ -28,6 +28,7 @@ from island_mapping.core.builder import (
     StampSync,
     StarConfig,
     _Attempt,
+    _from_frame,
     eq3_bound,
     event_to_dict,
     normalized_measures,
@@ -179,7 +180,10 @@ def test_corridor_end_is_accepted_with_a_full_star_and_linked_to_the_start_islan
     assert len(acc) >= 2
     first, second = acc[0], acc[1]
     assert first.island is not None and first.island.id == 0 and first.edge is None
-    assert first.anchor_odom == Pose2D(-14.0, 0.0, 0.0)
+    # the start pose, turned only by the star legs' registration (odometry here is near exact)
+    assert first.anchor_odom is not None
+    assert (first.anchor_odom.x, first.anchor_odom.y) == (-14.0, 0.0)
+    assert abs(first.anchor_odom.theta) < 1e-4
     assert second.island is not None and second.edge is not None
     # Island 1 sits near the corridor end: the end wall is within sonar range (6.5 m).
     assert second.anchor_odom is not None and second.anchor_odom.x > -5.5
@@ -1128,6 +1132,29 @@ def test_each_star_leg_is_registered_onto_the_model_of_the_legs_before() -> None
     np.testing.assert_allclose(exact_on.model.segments, exact_off.model.segments, atol=1e-3)
     with pytest.raises(BuilderError, match=r"BuilderConfig\.register_sigma_deg"):
         BuilderConfig(register_sigma_deg=0.0)
+
+
+def test_a_leg_slid_along_a_hallway_still_registers_its_heading() -> None:
+    """A leg's echoes in a plain corridor, placed by odometry 10 deg off (paper_fig4 live seed
+    8: 11.3 deg after the star's turn back). Their fit onto the earlier legs' walls slides
+    along the corridor (degenerate: not converged, which the full-pose check refused, leaving
+    that island's walls turned 7 deg); its steps settle and its heading is right, and only the
+    heading is used: it is kept within the innovation gate and refused beyond it."""
+    h = HALF_WIDTH_M
+    model = LineModel(np.array([[-6.0, -h, 6.0, -h], [-6.0, h, 6.0, h]]))
+    leg = np.concatenate([  # looks along a 1.2 m leg from the anchor, in the anchor frame
+        _from_frame(_look_points(corridor_world(), Pose2D(x, 0.0, 0.0), seed=k), Pose2D(x, 0, 0))
+        for k, x in enumerate(np.arange(0.0, 1.21, 0.3))])
+    placed = _from_frame(leg, Pose2D(0.0, 0.0, math.radians(10.0)))  # odometry 10 deg off
+    b = IslandBuilder(BuilderConfig())
+    res = localize(model, placed, Pose2D(0.0, 0.0, 0.0), b.config.localize)
+    assert res.settled and not res.converged
+    assert b._register(model, placed, Pose2D(0.0, 0.0, 0.0)) == Pose2D(0.0, 0.0, 0.0)
+    found = b._leg_heading(model, placed, math.radians(15.0))
+    assert found is not None and math.degrees(found) == pytest.approx(-10.0, abs=0.5)
+    assert b._leg_heading(model, placed, math.radians(8.0)) is None
+    across = _from_frame(leg, Pose2D(0.0, 0.0, math.radians(90.0)))  # the walls across
+    assert b._leg_heading(model, across, math.radians(15.0)) is None
 
 
 @pytest.mark.parametrize(("climbs", "feature_radius_m"), [(1, 0.0), (0, 3.0)])

@@ -79,6 +79,11 @@ class BuilderError(ValueError):
     """Bad input to the island builder (the message names the argument and the problem)."""
 
 
+REGISTER_GATE_SIGMAS = 3.0
+"""A leg's registered turn is kept within this many sigmas of its innovation (odometry's heading
+variance plus register_sigma_deg's): 99.7 % of right fits pass, a wrong wall's 90 deg does not."""
+
+
 def _point_to_line() -> LocalizeConfig:
     """Localization with the Gauss-Newton point-to-line step (the Dudek-MacKenzie step reaches
     the same fixed point but often needs more than its iteration limit)."""
@@ -1342,15 +1347,16 @@ class IslandBuilder:
         model = self._fit(np.concatenate(att.points[:i], axis=0))
         if len(model) == 0:
             return
-        identity = Pose2D(0.0, 0.0, 0.0)
-        found = self._register(model, np.concatenate(att.points[i:], axis=0), identity)
-        if found == identity:
-            return
         odom_var = float(self._star_rel.p[2, 2])
         var = att.heading_var_rad2 + max(odom_var - att.odom_var_seen_rad2, 0.0)
-        gain = var / (var + math.radians(self.config.register_sigma_deg) ** 2)
+        sigma2 = math.radians(self.config.register_sigma_deg) ** 2
+        found = self._leg_heading(model, np.concatenate(att.points[i:], axis=0),
+                                  REGISTER_GATE_SIGMAS * math.sqrt(var + sigma2))
+        if found is None:
+            return
+        gain = var / (var + sigma2)
         att.heading_var_rad2, att.odom_var_seen_rad2 = (1.0 - gain) * var, odom_var
-        fix = Pose2D(0.0, 0.0, gain * found.theta)
+        fix = Pose2D(0.0, 0.0, gain * found)
         for lst, mark in zip(att.point_lists(), att.leg_marks, strict=True):
             lst[mark:] = [_from_frame(p, fix) for p in lst[mark:]]
         att.anchor = att.anchor.compose(fix.inverse())
@@ -1599,6 +1605,25 @@ class IslandBuilder:
             return 0.0, 0.0
         self._accept_at(model, pr.shift, here)
         return 0.0, 0.0
+
+    def _leg_heading(
+        self, model: LineModel, points: FloatArray, gate_rad: float
+    ) -> float | None:
+        """The turn [rad] that registers a leg's `points` (anchor frame, placed by odometry)
+        onto the earlier legs' `model`: the fit's heading from the identity when its steps
+        settled with enough points matched and the turn is within `gate_rad` (the innovation
+        gate); else None. Only the heading is used, so a fit that slid along a hallway (its
+        position free along it: degenerate, not converged) still counts; one constrained in
+        both axes must stay within verify_offset_m (farther is a wrong match)."""
+        cfg = self.config
+        res = localize(model, points, Pose2D(0.0, 0.0, 0.0), cfg.localize)
+        turned = wrap_angle(res.pose.theta)
+        degenerate = res.constraint < cfg.localize.min_constraint
+        if not res.settled or res.matched_fraction < cfg.localize.min_matched_fraction or (
+            abs(turned) > gate_rad
+        ) or (not degenerate and math.hypot(res.pose.x, res.pose.y) > cfg.verify_offset_m):
+            return None
+        return turned
 
     def _register(self, model: LineModel, points_robot: FloatArray, guess: Pose2D) -> Pose2D:
         """The robot's pose in `model`'s frame: `points_robot` localized from the odometric

@@ -126,7 +126,9 @@ class LocalizationResult:
     pose: corrected pose; residual_m: RMS point-to-segment distance of the matched points at that
     pose [m]; iterations: iterations run; converged: steps vanished, the position is constrained
     in both axes and enough points matched; matched_fraction: matched / finite points [0-1];
-    constraint: smaller eigenvalue of the normalized normal matrix [0-0.5] (0 = degenerate).
+    constraint: smaller eigenvalue of the normalized normal matrix [0-0.5] (0 = degenerate);
+    settled: the steps vanished within max_iterations (true of a fit that slid along a hallway,
+    degenerate or not, so not converged).
     """
 
     pose: Pose2D
@@ -135,6 +137,7 @@ class LocalizationResult:
     converged: bool
     matched_fraction: float
     constraint: float = 0.0
+    settled: bool = False
 
 
 def closest_on_segments(
@@ -349,7 +352,8 @@ def _iterate(
         and int(ok.sum()) >= cfg.min_points
     )
     return LocalizationResult(
-        Pose2D.from_array(pose), residual, iterations, bool(converged), matched, constraint
+        Pose2D.from_array(pose), residual, iterations, bool(converged), matched, constraint,
+        steps_small,
     )
 
 
