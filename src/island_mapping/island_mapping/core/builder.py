@@ -1498,13 +1498,13 @@ class IslandBuilder:
                 past.append((p, r))
                 if r > far[1] and (cfg.peak_behind or not behind):
                     far = (p, r)
-        floor = anchor[1] * (1.0 + cfg.peak_min_gain)
-        # The peak past the driven legs is probed only where it beats both the anchor by
-        # peak_min_gain and the legs' choice; otherwise the legs' choice is the origin.
         if self._plain_hallway(model, legs[0]):
             legs, off = self._off_plain_hallway(model, legs, driven, past, att.bound)
             if off is not None:
                 return legs, off
+        # The peak past the driven legs is probed only where it beats both the anchor by
+        # peak_min_gain and the legs' choice; otherwise the legs' choice is the origin.
+        floor = anchor[1] * (1.0 + cfg.peak_min_gain)
         return legs, (far if far[1] > floor and far[1] > legs[1] else legs)
 
     def _off_plain_hallway(
