@@ -985,6 +985,8 @@ class IslandBuilder:
             evaluate = evaluate if evaluate is not None else core.evaluate
         self._fit = fit
         self._evaluate = evaluate
+        radius = self.config.origin_feature_radius_m
+        self._placement = PlacementConfig(radius_m=radius) if radius > 0.0 else None
         self._state = _State.WAITING
         self._odom: Pose2D | None = None
         self._cov = np.zeros((3, 3))
@@ -1474,8 +1476,9 @@ class IslandBuilder:
         peak_behind, past the back leg along the straight path that led to the anchor) up to
         peak_ahead_m; each the anchor itself unless its peak beats it by peak_min_gain
         (peak_ahead_min_gain along the driven ahead leg). Where the model shows a plain
-        hallway at the origin so chosen, _off_plain_hallway chooses again (also past the back
-        leg)."""
+        hallway at the origin so chosen, the best driven point it shows at a junction (passing
+        the attempt's bound) is the origin instead; failing that, the best such point past the
+        legs (also past the back leg) is probed."""
         cfg = self.config
         anchor = (Pose2D(0.0, 0.0, 0.0), self._measure_at(model, np.zeros(2)))
         legs, far = anchor, anchor
@@ -1499,42 +1502,31 @@ class IslandBuilder:
                 if r > far[1] and (cfg.peak_behind or not behind):
                     far = (p, r)
         if self._plain_hallway(model, legs[0]):
-            legs, off = self._off_plain_hallway(model, legs, driven, past, att.bound)
-            if off is not None:
-                return legs, off
+            on_legs = self._best_junction(model, driven, att.bound)
+            if on_legs is not None:
+                legs = on_legs
+            else:
+                beyond = self._best_junction(model, past, att.bound)
+                if beyond is not None:
+                    return legs, beyond
         # The peak past the driven legs is probed only where it beats both the anchor by
         # peak_min_gain and the legs' choice; otherwise the legs' choice is the origin.
         floor = anchor[1] * (1.0 + cfg.peak_min_gain)
         return legs, (far if far[1] > floor and far[1] > legs[1] else legs)
 
-    def _off_plain_hallway(
-        self,
-        model: LineModel,
-        chosen: tuple[Pose2D, float],
-        driven: list[tuple[Pose2D, float]],
-        past: list[tuple[Pose2D, float]],
-        bound: float,
-    ) -> tuple[tuple[Pose2D, float], tuple[Pose2D, float] | None]:
-        """Choosing again where the model shows a plain hallway at the `chosen` origin: (the
-        best of the `driven` candidates (origin, measure) the model does not show in one and
-        whose measure passes the attempt's `bound`, None: the usual choice past the legs);
-        failing that, (`chosen`, the best such candidate `past` the legs, to probe); failing
-        that, (`chosen`, None)."""
-        def ok(cands: list[tuple[Pose2D, float]]) -> list[tuple[Pose2D, float]]:
-            return [c for c in cands if c[1] > bound and not self._plain_hallway(model, c[0])]
-
-        on_legs = ok(driven)
-        if on_legs:
-            return max(on_legs, key=lambda c: c[1]), None
-        beyond = ok(past)
-        return chosen, (max(beyond, key=lambda c: c[1]) if beyond else None)
+    def _best_junction(
+        self, model: LineModel, candidates: list[tuple[Pose2D, float]], bound: float
+    ) -> tuple[Pose2D, float] | None:
+        """The best of `candidates` (origin, measure) whose measure passes `bound` and where
+        `model` does not show a plain hallway; None if there is none."""
+        ok = [c for c in candidates if c[1] > bound and not self._plain_hallway(model, c[0])]
+        return max(ok, key=lambda c: c[1]) if ok else None
 
     def _plain_hallway(self, model: LineModel, p: Pose2D) -> bool:
         """Does `model` show a plain hallway at p (anchor frame): only parallel walls within
         origin_feature_radius_m? Never with the radius 0 (the check off)."""
-        radius = self.config.origin_feature_radius_m
-        return radius > 0.0 and classify_place(
-            model.segments, p.x, p.y, PlacementConfig(radius_m=radius)
+        return self._placement is not None and classify_place(
+            model.segments, p.x, p.y, self._placement
         ) is PlaceKind.PLAIN_HALLWAY
 
     def _along(
