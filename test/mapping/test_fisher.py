@@ -13,7 +13,7 @@ from island_mapping.core.fisher import (
     information_matrices,
 )
 from island_mapping.core.measure import ray_angles
-from island_sim.core.world import raycast
+from island_msgs_py.raycast import raycast
 
 SQUARE = np.array([[-2, -2, 2, -2], [2, -2, 2, 2], [2, 2, -2, 2], [-2, 2, -2, -2]], float)
 CORRIDOR = np.array([[-60, -1.5, 60, -1.5], [-60, 1.5, 60, 1.5]], float)

@@ -29,8 +29,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.raycast import raycast
 from island_msgs_py.types import FloatArray
-from island_sim.core.world import World, raycast
+from island_sim.core.world import World
 
 from island_mapping.core.measure import as_points, as_world, ray_angles, tiled_chunks
 

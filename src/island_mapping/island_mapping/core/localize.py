@@ -33,8 +33,8 @@ from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.raycast import raycast
 from island_msgs_py.types import FloatArray, LineModel, Pose2D, as_segments, wrap_angle
-from island_sim.core.world import raycast
 
 IntArray = npt.NDArray[np.int64]
 

@@ -30,8 +30,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.raycast import raycast
 from island_msgs_py.types import FloatArray, ModelType, as_segments
-from island_sim.core.world import World, raycast
+from island_sim.core.world import World
 
 if TYPE_CHECKING:  # fisher imports this module at run time
     from island_mapping.core.fisher import FisherConfig
