@@ -23,8 +23,9 @@ from island_mapping.core.navigate import (
     unconstrained_axis_rad,
     with_reverse_edges,
 )
+from island_msgs_py.geometry import ranges_to_points
 from island_msgs_py.types import ControlStrategy, Edge, Island, LineModel, ModelType, Pose2D
-from island_sim.core.sonar import SonarConfig, SonarModel, ranges_to_points
+from island_sim.core.sonar import SonarConfig, SonarModel
 from island_sim.core.world import World, load_world
 
 H = 1.25  # corridor half width [m]

@@ -34,6 +34,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from island_msgs_py.geometry import closest_on_segments, from_frame, ranges_to_points, to_frame
 from island_msgs_py.types import (
     ControlStrategy,
     Edge,
@@ -57,13 +58,7 @@ from island_mapping.core.builder import (
 )
 from island_mapping.core.graph import GraphError, TopoGraph, reverse_strategy
 from island_mapping.core.lines import thin_evenly
-from island_mapping.core.localize import (
-    LocalizationResult,
-    LocalizeConfig,
-    Solver,
-    closest_on_segments,
-    localize,
-)
+from island_mapping.core.localize import LocalizationResult, LocalizeConfig, Solver, localize
 
 
 class NavigateError(ValueError):
@@ -327,11 +322,7 @@ class _Sim:
 
     def scan_points_odom(self) -> FloatArray:
         """Points of the latest scan in the odometry frame [m]."""
-        o = self.robot.odom_pose
-        a = self.sonar.angles_rad + o.theta
-        ok = np.isfinite(self.scan)
-        r = self.scan[ok]
-        return np.stack([o.x + r * np.cos(a[ok]), o.y + r * np.sin(a[ok])], axis=1)
+        return ranges_to_points(self.scan, self.sonar.angles_rad, self.robot.odom_pose)
 
     def rotate_to(self, heading_odom_rad: float) -> None:
         c = self.cfg
@@ -440,11 +431,7 @@ def _look_around(sim: _Sim) -> FloatArray:
         last = th
         pts.append(sim.scan_points_odom())
     sim.step(0.0, 0.0)
-    allp = np.concatenate(pts, axis=0)
-    o = sim.robot.odom_pose
-    cth, sth = math.cos(o.theta), math.sin(o.theta)
-    d = allp - np.array([o.x, o.y])
-    return np.stack([cth * d[:, 0] + sth * d[:, 1], -sth * d[:, 0] + cth * d[:, 1]], axis=1)
+    return to_frame(np.concatenate(pts, axis=0), sim.robot.odom_pose)
 
 
 def localize_multi(
@@ -544,8 +531,7 @@ def unconstrained_axis_rad(island: Island, points_robot: FloatArray, pose: Pose2
     The eigenvector of the smallest eigenvalue of sum n n^T over the matched points (n the unit
     direction from a point to its nearest model segment): in a hallway, the hallway's axis.
     """
-    c, s = math.cos(pose.theta), math.sin(pose.theta)
-    pts = points_robot @ np.array([[c, s], [-s, c]]) + np.array([pose.x, pose.y])
+    pts = from_frame(points_robot, pose)
     _, foot, dist = closest_on_segments(pts, island.model.segments)
     ok = (dist <= cfg.max_match_dist_m) & (dist > 1e-6)
     if not np.any(ok):
@@ -856,13 +842,7 @@ class IslandTracker:
         self, odom_pose: Pose2D, ranges_m: FloatArray, angles_rad: FloatArray
     ) -> IslandFix | None:
         """Add a scan (robot frame) at an odometry pose; a fix when one is due and trusted."""
-        a = np.asarray(angles_rad, dtype=np.float64) + odom_pose.theta
-        r = np.asarray(ranges_m, dtype=np.float64)
-        ok = np.isfinite(r) & np.isfinite(a)
-        pts = np.stack(
-            [odom_pose.x + r[ok] * np.cos(a[ok]), odom_pose.y + r[ok] * np.sin(a[ok])], axis=1
-        )
-        self._window.append(pts)
+        self._window.append(ranges_to_points(ranges_m, angles_rad, odom_pose))
         del self._window[: -self.config.window_scans]
         self._count += 1
         if self._count % self.config.every_n_scans:
@@ -871,10 +851,7 @@ class IslandTracker:
         if near is None:
             return None
         island, origin, ext = self._islands[near]
-        allp = np.concatenate(self._window, axis=0)
-        c, s = math.cos(odom_pose.theta), math.sin(odom_pose.theta)
-        d = allp - np.array([odom_pose.x, odom_pose.y])
-        robot_pts = np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
+        robot_pts = to_frame(np.concatenate(self._window, axis=0), odom_pose)
         res = localize(island.model, robot_pts, odom_pose.relative_to(origin), self.config.localize)
         if not res.converged or res.residual_m > self.config.max_residual_m:
             return None

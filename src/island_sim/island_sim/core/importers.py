@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.geometry import clearance_m, closest_on_segment_rows
 from island_msgs_py.types import FloatArray, Pose2D
 from scipy import ndimage
 
@@ -381,7 +382,11 @@ def _douglas_peucker(pts: FloatArray, tol: float) -> FloatArray:
         if i1 - i0 < 2:
             continue
         mid = pts[i0 + 1 : i1]
-        d = _point_segment_distance(mid, pts[i0], pts[i1])
+        chord = np.broadcast_to(np.concatenate([pts[i0], pts[i1]]), (mid.shape[0], 4))
+        foot, _ = closest_on_segment_rows(mid, chord)
+        # Lattice points tie at whole-pixel distances: this rounding (norm of p - foot) decides
+        # them as the traced worlds were made (Willow: 3550 walls).
+        d = np.linalg.norm(mid - foot, axis=1)
         k = int(np.argmax(d))
         if d[k] > tol:
             km = i0 + 1 + k
@@ -389,15 +394,6 @@ def _douglas_peucker(pts: FloatArray, tol: float) -> FloatArray:
             stack.append((i0, km))
             stack.append((km, i1))
     return pts[keep]
-
-
-def _point_segment_distance(p: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
-    ab = b - a
-    den = float(ab @ ab)
-    if den == 0.0:
-        return np.linalg.norm(p - a, axis=1)
-    t = np.clip(((p - a) @ ab) / den, 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
 
 
 # ----------------------------------------------------------------------------- start poses
@@ -438,22 +434,8 @@ def enclosed_start_pose(world: World, step_m: float = 0.25) -> Pose2D:
     if not np.any(enclosed):
         enclosed[:] = True
     pts = pts[enclosed]
-    clearance = _clearance(pts, world.segments)
+    clearance = clearance_m(pts, world.segments)
     return start_pose_from_clearance(world, pts, clearance)
-
-
-def _clearance(pts: FloatArray, segs: FloatArray) -> FloatArray:
-    """(K,) distance [m] from each point to the nearest segment."""
-    out = np.full(pts.shape[0], np.inf)
-    a, ab = segs[:, 0:2], segs[:, 2:4] - segs[:, 0:2]
-    den = np.maximum(np.sum(ab * ab, axis=1), 1e-300)
-    step = max(1, (1 << 20) // max(1, segs.shape[0]))
-    for s in range(0, pts.shape[0], step):
-        p = pts[s : s + step, None, :]
-        t = np.clip(np.sum((p - a) * ab, axis=2) / den, 0.0, 1.0)
-        d = np.linalg.norm(p - (a + t[:, :, None] * ab), axis=2)
-        out[s : s + step] = d.min(axis=1)
-    return out
 
 
 # ----------------------------------------------------------------------------- importers
@@ -516,7 +498,7 @@ def import_houseexpo(path: str | Path, data: dict[str, Any] | None = None) -> Wo
     pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
     inside = _inside_polygon(pts, verts)
     pts = pts[inside]
-    start = start_pose_from_clearance(world, pts, _clearance(pts, segs))
+    start = start_pose_from_clearance(world, pts, clearance_m(pts, segs))
     return World(world.segments, name=name, start_pose=start)
 
 
