@@ -12,7 +12,7 @@ from island_mapping.core.fisher import (
     fisher_measure,
     information_matrices,
 )
-from island_mapping.core.measure import ray_angles
+from island_mapping.core.rays import ray_angles
 from island_msgs_py.raycast import raycast
 
 SQUARE = np.array([[-2, -2, 2, -2], [2, -2, 2, 2], [2, 2, -2, 2], [-2, 2, -2, -2]], float)

@@ -2,7 +2,8 @@
 
 Segments are (N, 4) rows (x1, y1, x2, y2) [m]; rays start at (M, 2) origins [m] along (M,)
 angles [rad]. `raycast` is the brute-force caster; `SegmentIndex` answers the same queries bit
-for bit with a spatial index (fast in worlds of thousands of walls). The simulator's sonar and
+for bit with a spatial index (fast in worlds of thousands of walls); `RayCaster` is what both
+it and the simulator's `World` offer (segments and a `raycast` method). The simulator's sonar and
 worlds, the distinctiveness measure, the Fisher score, localization and place classification
 all cast their rays here.
 """
@@ -12,6 +13,7 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -24,6 +26,18 @@ _PARALLEL_EPS = 1e-12
 
 class RaycastError(ValueError):
     """Malformed rays (origins and angles that do not match); the message names the shapes."""
+
+
+@runtime_checkable
+class RayCaster(Protocol):
+    """Segments (N, 4) [m] that answer `raycast(origins, angles_rad, max_range_m) -> RayHits`."""
+
+    @property
+    def segments(self) -> FloatArray: ...
+
+    def raycast(
+        self, origins: npt.ArrayLike, angles_rad: npt.ArrayLike, max_range_m: float = ...
+    ) -> RayHits: ...
 
 
 @dataclass(frozen=True)
