@@ -49,7 +49,8 @@ from island_msgs_py.types import (
 )
 from island_sim.core.robot import OdometryConfig, SimRobot
 from island_sim.core.sonar import SonarConfig, SonarModel
-from island_sim.core.world import World, load_world
+from island_sim.core.world import World
+from island_sim.core.world_loader import load_world
 
 from island_msgs_py import json_io
 

@@ -26,7 +26,8 @@ from island_mapping.core.navigate import (
 from island_msgs_py.geometry import ranges_to_points
 from island_msgs_py.types import ControlStrategy, Edge, Island, LineModel, ModelType, Pose2D
 from island_sim.core.sonar import SonarConfig, SonarModel
-from island_sim.core.world import World, load_world
+from island_sim.core.world import World
+from island_sim.core.world_loader import load_world
 
 H = 1.25  # corridor half width [m]
 

@@ -21,7 +21,7 @@ from island_sim.conversions import (
     pose_to_odometry,
     time_to_ns,
 )
-from island_sim.core.world import load_world
+from island_sim.core.world_loader import load_world
 from island_sim.nodes.hall_follower_node import LATCHED, HallFollowerNode
 from island_sim.nodes.odometry_node import OdometryNode
 from island_sim.nodes.sonar_node import SonarNode

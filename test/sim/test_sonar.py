@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from island_msgs_py.types import Pose2D
 from island_sim.core.sonar import SonarConfig, SonarError, SonarModel
-from island_sim.core.world import World, load_world
+from island_sim.core.world import World
+from island_sim.core.world_loader import load_world
 
 IDEAL = SonarConfig(ideal=True)
 NOISELESS = SonarConfig(noise_std_m=0.0)

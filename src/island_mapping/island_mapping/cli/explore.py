@@ -25,7 +25,8 @@ from typing import Any
 import numpy as np
 from island_msgs_py.json_io import atomic_write_text, pose_from_dict, pose_to_dict
 from island_msgs_py.types import Pose2D
-from island_sim.core.world import WorldError, load_world
+from island_sim.core.world import WorldError
+from island_sim.core.world_loader import load_world
 
 from island_mapping.cli import CliError
 from island_mapping.cli.params import parse_assignments, parse_node_assignments

@@ -1,7 +1,9 @@
-"""Line-segment worlds (numpy only): `World`, its YAML/JSON form and atomic saving.
+"""Line-segment worlds (numpy only): `World`, start poses, the YAML/JSON form, atomic saving.
 
 A world is a set of wall segments (N, 4) rows (x1, y1, x2, y2) [m] in the world frame, a name
 and a start pose. `World.raycast` casts rays with the shared `island_msgs_py.raycast` index.
+A world without a start pose gets the enclosed point farthest from the walls
+(`enclosed_start_pose`). Loading by name or file of any kind: `world_loader.load_world`.
 """
 
 from __future__ import annotations
@@ -16,8 +18,12 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.geometry import clearance_m
 from island_msgs_py.raycast import RaycastError, RayHits, SegmentIndex
 from island_msgs_py.types import FloatArray, Pose2D
+
+# Bearings tried when choosing the start heading (the longest free ray wins) [-].
+_START_BEARINGS = 72
 
 
 class WorldError(ValueError):
@@ -90,10 +96,49 @@ class World:
             raise WorldError(f"world {self.name!r}: {exc}") from None
 
 
-# ----------------------------------------------------------------------------- world files
+# ----------------------------------------------------------------------------- start poses
 
-_STRUCTURED_SUFFIXES = (".yaml", ".yml", ".json")
-_IMAGE_SUFFIXES = (".pgm", ".png")
+
+def start_pose_from_clearance(
+    world: World, candidates_m: FloatArray, clearances_m: FloatArray
+) -> Pose2D:
+    """The candidate point with the largest clearance, facing its longest free ray.
+
+    candidates_m: (K, 2) points [m]; clearances_m: (K,) distance to the nearest wall [m].
+    """
+    if candidates_m.shape[0] == 0:
+        raise WorldError(f"world {world.name!r}: cannot choose a start pose, no free space")
+    best = int(np.argmax(clearances_m))
+    x, y = (float(v) for v in candidates_m[best])
+    bearings = np.linspace(-math.pi, math.pi, _START_BEARINGS, endpoint=False)
+    ranges = world.raycast(np.array([[x, y]]), bearings).distance_m
+    ranges = np.where(np.isfinite(ranges), ranges, -1.0)
+    return Pose2D(x, y, float(bearings[int(np.argmax(ranges))]))
+
+
+def enclosed_start_pose(world: World, step_m: float = 0.25) -> Pose2D:
+    """A start pose for a world without one: the enclosed grid point farthest from any wall.
+
+    A point is enclosed when rays in 8 directions all hit a wall.
+    """
+    if world.segments.shape[0] == 0:
+        return Pose2D(0.0, 0.0, 0.0)
+    x0, y0, x1, y1 = world.bounds
+    nx = max(2, min(100, int((x1 - x0) / step_m)))
+    ny = max(2, min(100, int((y1 - y0) / step_m)))
+    gx, gy = np.meshgrid(np.linspace(x0, x1, nx + 2)[1:-1], np.linspace(y0, y1, ny + 2)[1:-1])
+    pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    dirs = np.linspace(0.0, 2.0 * math.pi, 8, endpoint=False)
+    hits = world.raycast(np.repeat(pts, 8, axis=0), np.tile(dirs, pts.shape[0]))
+    enclosed = np.all(np.isfinite(hits.distance_m.reshape(-1, 8)), axis=1)
+    if not np.any(enclosed):
+        enclosed[:] = True
+    pts = pts[enclosed]
+    clearance = clearance_m(pts, world.segments)
+    return start_pose_from_clearance(world, pts, clearance)
+
+
+# ----------------------------------------------------------------------------- world files
 
 
 def read_structured(path: Path) -> dict[str, Any]:
@@ -158,78 +203,8 @@ def world_from_dict(data: dict[str, Any], source: str = "<dict>") -> World:
         if not all(math.isfinite(v) for v in (x, y, th)):
             raise WorldError(f"{source}: 'start_pose' has a NaN or infinite value: {sp!r}")
         return World(segments, name=name, start_pose=Pose2D(x, y, th))
-    from island_sim.core.importers import enclosed_start_pose  # local: importers import us
-
     world = World(segments, name=name)
     return World(world.segments, name=name, start_pose=enclosed_start_pose(world))
-
-
-def load_world(spec: str | Path, resolution_m: float | None = None) -> World:
-    """A world from a built-in name or a file.
-
-    Built-ins: paper_fig3, paper_fig4, corridor, square_room, t_junction.
-    Files: YAML/JSON with `segments` (see `world_from_dict`), or with `verts` (HouseExpo), or
-    with `image` (a ROS map_server YAML: image path relative to the file, `resolution` [m/px],
-    `origin` [x, y, theta]); occupancy images .pgm/.png with `resolution_m` [m/px] (default
-    0.1), origin at the lower-left corner, dark pixels = walls.
-    """
-    from island_sim.core import importers, worlds_builtin  # local: both import this module
-
-    if isinstance(spec, str) and spec in worlds_builtin.BUILTIN_WORLDS:
-        return worlds_builtin.builtin_world(spec)
-    path = Path(spec)
-    suffix = path.suffix.lower()
-    if not path.exists():
-        if not suffix:
-            raise WorldError(
-                f"{spec}: neither a built-in world "
-                f"({', '.join(sorted(worlds_builtin.BUILTIN_WORLDS))}) nor an existing file"
-            )
-        raise WorldError(f"{path}: no such file")
-    if suffix in _IMAGE_SUFFIXES:
-        cfg = importers.ImageImportConfig(
-            resolution_m=resolution_m if resolution_m is not None else 0.1
-        )
-        return importers.import_image(path, cfg)
-    if suffix not in _STRUCTURED_SUFFIXES:
-        raise WorldError(
-            f"{path}: unknown world file extension {path.suffix!r} "
-            f"(use {', '.join(_STRUCTURED_SUFFIXES + _IMAGE_SUFFIXES)})"
-        )
-    data = read_structured(path)
-    if "segments" in data:
-        return world_from_dict(data, str(path))
-    if "verts" in data:
-        return importers.import_houseexpo(path, data)
-    if "image" in data:
-        return _load_map_yaml(path, data, resolution_m)
-    raise WorldError(
-        f"{path}: missing key 'segments' (or 'verts' for HouseExpo, 'image' for a map YAML)"
-    )
-
-
-def _load_map_yaml(path: Path, data: dict[str, Any], resolution_m: float | None) -> World:
-    """A ROS map_server YAML (image, resolution, origin, occupied_thresh, free_thresh)."""
-    from island_sim.core import importers
-
-    image = data["image"]
-    if not isinstance(image, str) or not image:
-        raise WorldError(f"{path}: 'image' must be a file name")
-    img_path = Path(image) if Path(image).is_absolute() else path.parent / image
-    kwargs: dict[str, float] = {}
-    try:
-        res = resolution_m if resolution_m is not None else float(data.get("resolution", 0.1))
-        origin = data.get("origin", [0.0, 0.0, 0.0])
-        kwargs["origin_x_m"], kwargs["origin_y_m"] = float(origin[0]), float(origin[1])
-        for key in ("occupied_thresh", "free_thresh"):
-            if key in data:
-                kwargs[key] = float(data[key])
-    except (TypeError, ValueError, IndexError, KeyError) as exc:
-        raise WorldError(f"{path}: bad resolution/origin/thresholds: {exc}") from exc
-    cfg = importers.ImageImportConfig(resolution_m=res, **kwargs)
-    world = importers.import_image(img_path, cfg)
-    name = str(data.get("name", path.stem))
-    return World(world.segments, name=name, start_pose=world.start_pose)
 
 
 def world_to_dict(world: World) -> dict[str, Any]:

@@ -53,7 +53,7 @@ from island_sim.core.robot import (
     SimLoopConfig,
     SimRobot,
 )
-from island_sim.core.world import load_world
+from island_sim.core.world_loader import load_world
 
 NODE_NAME = "odometry_node"
 WARN_THROTTLE_S = 2.0

@@ -26,7 +26,7 @@ from sensor_msgs.msg import LaserScan, Range
 from island_sim.conversions import ConversionError, arrays_to_scan, odometry_to_pose, range_msg
 from island_sim.core.robot import SimLoopConfig
 from island_sim.core.sonar import SonarConfig, SonarModel
-from island_sim.core.world import load_world
+from island_sim.core.world_loader import load_world
 
 NODE_NAME = "sonar_node"
 
