@@ -416,7 +416,7 @@ def test_bad_config_and_inputs_name_the_problem() -> None:
 
 def test_builder_core_does_not_import_rclpy() -> None:
     code = (
-        "import sys, island_mapping.core.builder, island_mapping.core.navigate; "
+        "import sys, island_mapping.core.builder, island_mapping.core.tracker; "
         "print('rclpy' in sys.modules)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

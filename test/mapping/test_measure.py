@@ -172,7 +172,7 @@ def test_island_cores_do_not_import_rclpy() -> None:
         "import sys\n"
         "import island_mapping.core.lines, island_mapping.core.localize\n"
         "import island_mapping.core.measure, island_mapping.core.fisher\n"
-        "import island_mapping.core.validation\n"
+        "import island_mapping.evaluation.validation\n"
         "bad = [m for m in sys.modules if m.startswith(('rclpy', 'matplotlib'))]\n"
         "assert not bad, bad\n"
     )

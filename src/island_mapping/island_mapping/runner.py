@@ -39,7 +39,7 @@ from std_msgs.msg import String
 
 from island_mapping.bag.recorder import RunRecorder
 from island_mapping.core.graph import TopoGraph
-from island_mapping.core.navigate import SimSetup
+from island_mapping.evaluation.navigate import SimSetup
 from island_mapping.nodes.island_builder_node import IslandBuilderNode
 from island_mapping.nodes.island_localizer_node import IslandLocalizerNode
 from island_mapping.nodes.topo_graph_server_node import TopoGraphServerNode

@@ -32,13 +32,14 @@ from island_mapping.cli import CliError
 from island_mapping.cli.params import parse_assignments, parse_node_assignments
 from island_mapping.cli.progress import ProgressBar
 from island_mapping.core.graph import TopoGraph
-from island_mapping.core.navigate import EdgeResult, NavigateError, SimSetup, evaluate_routes
 from island_mapping.core.placement import (
     PlaceKind,
     classify_place,
     feature_distance_m,
     placement_counts,
 )
+from island_mapping.evaluation.navigate import NavigateError, SimSetup
+from island_mapping.evaluation.routes import EdgeResult, evaluate_routes
 
 PROGRESS_STEPS = 1000
 """Resolution of the progress bar (per mille of the simulated duration)."""

@@ -125,6 +125,13 @@ class LocalizeConfig:
             raise LocalizeError(f"LocalizeConfig: {exc}") from None
 
 
+def point_to_line_config() -> LocalizeConfig:
+    """Localization with the Gauss-Newton point-to-line step, the default of the island tracker
+    and of route following (the Dudek-MacKenzie step reaches the same fixed point but often
+    needs more than its iteration limit)."""
+    return LocalizeConfig(solver=Solver.POINT_TO_LINE)
+
+
 @dataclass(frozen=True)
 class LocalizationResult:
     """Outcome of `localize`.

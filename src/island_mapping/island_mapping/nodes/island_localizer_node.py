@@ -7,7 +7,7 @@ Subscribes  /island_builder/events  std_msgs/String (JSON): `island_accepted` ev
 Publishes   /island_pose            geometry_msgs/PoseWithCovarianceStamped, frame_id = the
                                     island's frame (`island_<id>`), stamped with the scan time
 Each scan is paired with the odometry of the same stamp (island_sim.core.stamps). The logic is
-island_mapping.core.navigate.IslandTracker.
+island_mapping.core.tracker.IslandTracker.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from island_sim.scan_inputs import subscribe_paired_scans
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from island_mapping.core.navigate import IslandTracker, TrackerConfig
+from island_mapping.core.tracker import IslandTracker, TrackerConfig
 from island_msgs_py import conversions as cv
 from island_msgs_py import json_io
 
