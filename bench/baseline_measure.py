@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 from island_mapping.core.measure import MeasureConfig
-from island_sim.core.world import raycast
+from island_msgs_py.raycast import raycast
 
 
 def baseline_r(segments: np.ndarray, x: float, y: float, cfg: MeasureConfig) -> float:

@@ -27,7 +27,7 @@ from island_mapping.core.measure import (
     line_measure,
     measure_map,
 )
-from island_sim.core.world import load_world
+from island_sim.core.world_loader import load_world
 
 
 def main() -> int:

@@ -18,9 +18,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+from island_msgs_py.raycast import raycast
 from island_msgs_py.types import Pose2D
 from island_sim.core.sonar import SonarConfig, SonarModel
-from island_sim.core.world import World, load_world, raycast
+from island_sim.core.world import World
+from island_sim.core.world_loader import load_world
 from island_sim.core.worlds_builtin import BUILTIN_FREE_RECTS
 
 DEFAULT_WILLOW = Path(__file__).resolve().parents[2] / "shared/data/floorplans/willow-full.pgm"

@@ -79,7 +79,7 @@ def run_core(world_name: str, sim_s: float) -> dict[str, Any]:
     from island_sim.core.hall_follower import HallFollower
     from island_sim.core.robot import SimRobot
     from island_sim.core.sonar import SonarModel
-    from island_sim.core.world import load_world
+    from island_sim.core.world_loader import load_world
 
     world = load_world(world_name)
     rng = np.random.default_rng(0)

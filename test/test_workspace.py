@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ast
 import configparser
 import json
 import re
@@ -10,35 +11,99 @@ import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import networkx as nx
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("island_msgs_py", "island_sim", "island_mapping")
 
 
+# island_msgs_py's ROS-free modules (conversions, qos, ros_params, scan_inputs use rclpy).
+MSGS_CORE = ("types", "json_io", "geometry", "raycast", "stamps")
+
+
+def _modules_under(pkg: str, sub: str) -> list[str]:
+    """Dotted names of every module and package below src/<pkg>/<pkg>/<sub>."""
+    base = ROOT / "src" / pkg
+    out = []
+    for p in sorted((base / pkg / sub).rglob("*.py")):
+        parts = p.relative_to(base).with_suffix("").parts
+        out.append(".".join(parts[:-1] if parts[-1] == "__init__" else parts))
+    return out
+
+
 def _core_modules() -> list[str]:
-    mods = ["island_msgs_py.types", "island_msgs_py.json_io"]
+    mods = [f"island_msgs_py.{m}" for m in MSGS_CORE]
     for pkg in ("island_sim", "island_mapping"):
-        core = ROOT / "src" / pkg / pkg / "core"
-        mods += [f"{pkg}.core.{p.stem}" for p in sorted(core.glob("*.py")) if p.stem != "__init__"]
-    return [
-        m for m in mods
-        if (ROOT / "src" / m.split(".")[0] / (m.replace(".", "/") + ".py")).exists()
-    ]
+        mods += _modules_under(pkg, "core")
+    return mods
+
+
+def _loaded_after_import(mods: list[str], roots: tuple[str, ...]) -> list[str]:
+    """Modules under `roots` that importing `mods` in a fresh interpreter loads."""
+    code = (
+        "import importlib, sys\n"
+        f"for m in {mods!r}: importlib.import_module(m)\n"
+        f"print(','.join(sorted(k for k in sys.modules if k.split('.')[0] in {roots!r})))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return [m for m in out.stdout.strip().split(",") if m]
 
 
 def test_core_modules_do_not_load_rclpy() -> None:
     mods = _core_modules()
     assert len(mods) >= 3
-    code = (
-        "import importlib, sys\n"
-        f"for m in {mods!r}: importlib.import_module(m)\n"
-        "bad = sorted(k for k in sys.modules if k.split('.')[0] in "
-        "('rclpy', 'rosidl_parser', 'sensor_msgs', 'nav_msgs', 'geometry_msgs', 'matplotlib'))\n"
-        "print(','.join(bad))\n"
+    bad = _loaded_after_import(
+        mods, ("rclpy", "rosidl_parser", "sensor_msgs", "nav_msgs", "geometry_msgs", "matplotlib")
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "", f"core modules pulled in: {out.stdout.strip()}"
+    assert bad == [], f"core modules pulled in: {bad}"
+
+
+def test_mapping_core_loads_nothing_of_island_sim() -> None:
+    """The mapping core runs on a robot without the simulator (issue 15)."""
+    mods = _modules_under("island_mapping", "core")
+    assert "island_mapping.core.localize" in mods
+    assert _loaded_after_import(mods, ("island_sim",)) == []
+
+
+def _import_graph() -> dict[str, set[str]]:
+    """Module -> the src modules it imports, from every import statement (also those inside
+    functions, which would otherwise hide a cycle); a package's own __init__ is no edge."""
+    mods = {m: ROOT / "src" / m.split(".")[0] for pkg in PACKAGES for m in _modules_under(pkg, "")}
+    graph: dict[str, set[str]] = {}
+    for name in mods:
+        rel = Path(*name.split("."))
+        path = mods[name] / rel.with_suffix(".py")
+        if not path.is_file():
+            path = mods[name] / rel / "__init__.py"
+        edges = graph.setdefault(name, set())
+        for node in ast.walk(ast.parse(path.read_text())):
+            targets: list[str] = []
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                targets = [
+                    f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in mods else node.module
+                    for a in node.names
+                ]
+            for t in targets:
+                while t and t not in mods:
+                    t = t.rpartition(".")[0]
+                if t and t != name and not name.startswith(t + "."):
+                    edges.add(t)
+    return graph
+
+
+def test_no_import_cycles_in_src() -> None:
+    graph = _import_graph()
+    assert "island_sim.core.world" in graph["island_sim.core.importers"]  # the graph is real
+    cycles = [
+        sorted(c)
+        for c in nx.strongly_connected_components(nx.DiGraph(
+            [(a, b) for a, targets in graph.items() for b in targets]))
+        if len(c) > 1
+    ]
+    assert cycles == [], f"import cycles: {cycles}"
 
 
 @pytest.mark.parametrize("pkg", PACKAGES)

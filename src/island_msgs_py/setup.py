@@ -20,7 +20,8 @@ setup(
     maintainer_email='islands@example.org',
     description=(
         'Shared data types of the islands-of-reliability map (islands, edges, control '
-        'strategies) with their JSON and ROS message forms.'
+        'strategies) with their JSON and ROS message forms; planar geometry, ray casting and '
+        'scan/odometry pairing shared by the simulator and the mapping packages.'
     ),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},

@@ -34,9 +34,9 @@ from island_mapping.core.builder import (
     normalized_measures,
 )
 from island_mapping.core.graph import strategy_displacement
-from island_mapping.core.lines import point_segment_distance
 from island_mapping.core.localize import localize
 from island_mapping.core.placement import PlaceKind, classify_place
+from island_msgs_py.geometry import point_segment_distance, ranges_to_points
 from island_msgs_py.types import (
     ControlStrategy,
     Edge,
@@ -48,8 +48,9 @@ from island_msgs_py.types import (
     wrap_angle,
 )
 from island_sim.core.robot import OdometryConfig, SimRobot
-from island_sim.core.sonar import SonarConfig, SonarModel, ranges_to_points
-from island_sim.core.world import World, load_world
+from island_sim.core.sonar import SonarConfig, SonarModel
+from island_sim.core.world import World
+from island_sim.core.world_loader import load_world
 
 from island_msgs_py import json_io
 
@@ -415,7 +416,7 @@ def test_bad_config_and_inputs_name_the_problem() -> None:
 
 def test_builder_core_does_not_import_rclpy() -> None:
     code = (
-        "import sys, island_mapping.core.builder, island_mapping.core.navigate; "
+        "import sys, island_mapping.core.builder, island_mapping.core.tracker; "
         "print('rclpy' in sys.modules)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -12,8 +12,8 @@ from island_mapping.core.fisher import (
     fisher_measure,
     information_matrices,
 )
-from island_mapping.core.measure import ray_angles
-from island_sim.core.world import raycast
+from island_mapping.core.rays import ray_angles
+from island_msgs_py.raycast import raycast
 
 SQUARE = np.array([[-2, -2, 2, -2], [2, -2, 2, 2], [2, 2, -2, 2], [-2, 2, -2, -2]], float)
 CORRIDOR = np.array([[-60, -1.5, 60, -1.5], [-60, 1.5, 60, 1.5]], float)

@@ -15,7 +15,7 @@ import pytest
 import yaml
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from island_mapping.core.builder import BuilderConfig
-from island_mapping.core.navigate import TrackerConfig
+from island_mapping.core.tracker import TrackerConfig
 from island_mapping.nodes.island_builder_node import LATCHED, IslandBuilderNode
 from island_mapping.nodes.island_localizer_node import IslandLocalizerNode
 from island_mapping.nodes.topo_graph_server_node import TopoGraphServerNode

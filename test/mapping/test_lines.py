@@ -13,9 +13,11 @@ from island_mapping.core.lines import (
     fit_lines,
     fit_lines_with_support,
 )
+from island_msgs_py.geometry import ranges_to_points
+from island_msgs_py.raycast import raycast
 from island_msgs_py.types import LineModel, Pose2D
-from island_sim.core.sonar import SonarModel, ranges_to_points
-from island_sim.core.world import World, raycast
+from island_sim.core.sonar import SonarModel
+from island_sim.core.world import World
 
 ROOM = np.array([[-3, -2, 3, -2], [3, -2, 3, 2], [3, 2, -3, 2], [-3, 2, -3, -2]], float)
 

@@ -14,9 +14,11 @@ from island_mapping.core.localize import (
     convergence_region,
     localize,
 )
+from island_msgs_py.geometry import ranges_to_points
+from island_msgs_py.raycast import raycast
 from island_msgs_py.types import LineModel, Pose2D
-from island_sim.core.sonar import SonarConfig, SonarModel, ranges_to_points
-from island_sim.core.world import World, raycast
+from island_sim.core.sonar import SonarConfig, SonarModel
+from island_sim.core.world import World
 
 ROOM = np.array([[-3, -2, 3, -2], [3, -2, 3, 2], [3, 2, -3, 2], [-3, 2, -3, -2]], float)
 CORRIDOR = np.array([[-80, -1.5, 80, -1.5], [-80, 1.5, 80, 1.5]], float)

@@ -172,7 +172,7 @@ def test_island_cores_do_not_import_rclpy() -> None:
         "import sys\n"
         "import island_mapping.core.lines, island_mapping.core.localize\n"
         "import island_mapping.core.measure, island_mapping.core.fisher\n"
-        "import island_mapping.core.validation\n"
+        "import island_mapping.evaluation.validation\n"
         "bad = [m for m in sys.modules if m.startswith(('rclpy', 'matplotlib'))]\n"
         "assert not bad, bad\n"
     )
@@ -190,7 +190,7 @@ def test_map_with_eps_on_its_own_grid_equals_pointwise_averages() -> None:
 
 
 def test_tiled_casting_gives_exactly_the_untiled_result(monkeypatch) -> None:
-    import island_mapping.core.measure as measure_mod
+    import island_mapping.core.rays as rays_mod
     from island_mapping.core.fisher import fisher_measure
 
     rng = np.random.default_rng(8)
@@ -201,7 +201,7 @@ def test_tiled_casting_gives_exactly_the_untiled_result(monkeypatch) -> None:
     pts = rng.uniform(0.0, 25.0, (400, 2))
     tiled = line_measure(walls, pts)
     tiled_f = fisher_measure(walls, pts)
-    monkeypatch.setattr(measure_mod, "_TILE_MIN_SEGMENTS", 10**9)
+    monkeypatch.setattr(rays_mod, "_TILE_MIN_SEGMENTS", 10**9)
     whole = line_measure(walls, pts)
     whole_f = fisher_measure(walls, pts)
     assert np.array_equal(tiled.c_par, whole.c_par) and np.array_equal(tiled.r, whole.r)

@@ -1,4 +1,5 @@
-"""Navigating by the map (core.navigate) on a small hand-made graph in an L-shaped building."""
+"""Navigating by the map (evaluation.navigate, docking, routes, explore) and the island tracker
+(core.tracker) on a small hand-made graph in an L-shaped building."""
 
 from __future__ import annotations
 
@@ -10,22 +11,21 @@ import numpy as np
 import pytest
 from island_mapping.core.graph import TopoGraph
 from island_mapping.core.localize import LocalizationResult, localize
-from island_mapping.core.navigate import (
-    IslandTracker,
-    NavigateConfig,
-    NavigateError,
-    SimSetup,
-    TrackerConfig,
+from island_mapping.core.tracker import IslandTracker, TrackerConfig
+from island_mapping.evaluation.docking import unconstrained_axis_rad
+from island_mapping.evaluation.explore import explore
+from island_mapping.evaluation.navigate import NavigateConfig, NavigateError, SimSetup
+from island_mapping.evaluation.routes import (
     evaluate_routes,
-    explore,
     follow_route,
     follow_route_global_odometry,
-    unconstrained_axis_rad,
     with_reverse_edges,
 )
+from island_msgs_py.geometry import ranges_to_points
 from island_msgs_py.types import ControlStrategy, Edge, Island, LineModel, ModelType, Pose2D
-from island_sim.core.sonar import SonarConfig, SonarModel, ranges_to_points
-from island_sim.core.world import World, load_world
+from island_sim.core.sonar import SonarConfig, SonarModel
+from island_sim.core.world import World
+from island_sim.core.world_loader import load_world
 
 H = 1.25  # corridor half width [m]
 
@@ -343,7 +343,7 @@ def test_a_fit_the_estimate_rules_out_is_no_candidate(
     (trusted, the corner pins both axes); when every refinement comes back turned 120 deg from
     the estimate, or constraining the position only weakly, none is a candidate unless the
     rule allows it."""
-    import island_mapping.core.navigate as nav
+    import island_mapping.evaluation.docking as nav
 
     island, points = _corner_island_and_look(seed=3)
     cfg = NavigateConfig()

@@ -10,7 +10,7 @@ from island_mapping.core.placement import (
     placement_counts,
 )
 from island_msgs_py.types import Pose2D
-from island_sim.core.world import load_world
+from island_sim.core.world_loader import load_world
 
 CORRIDOR = np.array([[0.0, 0.0, 20.0, 0.0], [0.0, 2.0, 20.0, 2.0]])
 

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from island_mapping.core import realdata as rd
+from island_msgs_py.geometry import compose_poses, relative_poses, wrap_angles
 
 RELATION_LINES = [
     "976052905.167303 976052911.885496 -0.056990 -0.128430 0.000000 0.000000 0.000000 -1.682210\n",
@@ -70,9 +71,9 @@ def test_compose_and_relative_are_inverse() -> None:
     rng = np.random.default_rng(7)
     a = rng.uniform(-5, 5, (20, 3))
     b = rng.uniform(-5, 5, (20, 3))
-    back = rd.compose_poses(a, rd.relative_poses(a, b))
+    back = compose_poses(a, relative_poses(a, b))
     np.testing.assert_allclose(back[:, :2], b[:, :2], atol=1e-12)
-    np.testing.assert_allclose(rd.wrap_angles(back[:, 2] - b[:, 2]), 0.0, atol=1e-12)
+    np.testing.assert_allclose(wrap_angles(back[:, 2] - b[:, 2]), 0.0, atol=1e-12)
 
 
 @pytest.fixture(scope="module")
@@ -119,8 +120,8 @@ def test_pose_track_agrees_with_the_carmen_reader(
     rows = track.scan_rows
     np.testing.assert_array_equal(track.times_s[rows], log.times_s)
     np.testing.assert_allclose(track.gmapping[rows], log.corrected)
-    inc_a = rd.relative_poses(track.raw[rows[:-1]], track.raw[rows[1:]])
-    inc_b = rd.relative_poses(log.raw_odometry[:-1], log.raw_odometry[1:])
+    inc_a = relative_poses(track.raw[rows[:-1]], track.raw[rows[1:]])
+    inc_b = relative_poses(log.raw_odometry[:-1], log.raw_odometry[1:])
     np.testing.assert_allclose(inc_a, inc_b, atol=1e-9)
 
 
@@ -180,8 +181,8 @@ def test_fit_odometry_error_model_recovers_known_variances() -> None:
 def test_default_odometry_model_fits_the_intel_log(intel_track: rd.PoseTrack) -> None:
     track = intel_track
     rows = track.scan_rows
-    raw_inc = rd.relative_poses(track.raw[rows[:-1]], track.raw[rows[1:]])
-    cor_inc = rd.relative_poses(track.gmapping[rows[:-1]], track.gmapping[rows[1:]])
+    raw_inc = relative_poses(track.raw[rows[:-1]], track.raw[rows[1:]])
+    cor_inc = relative_poses(track.gmapping[rows[:-1]], track.gmapping[rows[1:]])
     fitted = rd.fit_odometry_error_model(raw_inc, cor_inc)
     default = rd.OdometryErrorModel()
     for name in ("var_xy_per_m_m2", "var_xy_per_rad_m2", "var_theta_per_m_rad2",

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from island_mapping.core import realdata as rd
+from island_msgs_py.geometry import compose_poses, from_frame, relative_poses, wrap_angles
 from island_msgs_py.types import Island, LineModel, ModelType
 
 N_SCANS = 50  # ~3 min of the Intel log; keeps the end-to-end test to a few seconds
@@ -199,8 +200,8 @@ def _points_seen_from(segments: np.ndarray, pose: np.ndarray, step_m: float = 0.
         k = max(2, int(math.hypot(x2 - x1, y2 - y1) / step_m))
         pts.append(np.stack([np.linspace(x1, x2, k), np.linspace(y1, y2, k)], axis=1))
     world = np.concatenate(pts)
-    inv = rd.relative_poses(pose, np.zeros(3))[0]  # pose^-1
-    local = rd.transform_points(inv, world)
+    inv = relative_poses(pose, np.zeros(3))[0]  # pose^-1
+    local = from_frame(world, inv)
     return local[np.hypot(local[:, 0], local[:, 1]) <= 6.0]  # the sensor's range
 
 
@@ -211,7 +212,7 @@ def test_place_search_finds_a_pose_in_an_asymmetric_room_and_flags_a_corridor() 
     true_pose = np.array([1.0, -0.6, math.radians(70.0)])
     pose, score, second = search.search(_points_seen_from(room, true_pose))
     assert math.hypot(pose[0] - true_pose[0], pose[1] - true_pose[1]) <= 0.15
-    assert abs(math.degrees(rd.wrap_angles(pose[2] - true_pose[2]))) <= 5.0
+    assert abs(math.degrees(wrap_angles(pose[2] - true_pose[2]))) <= 5.0
     assert score > 0.9 and score - second > 0.2
     corridor = np.array([[-20, -1, 20, -1], [-20, 1, 20, 1]], dtype=float)
     search_c = rd.PlaceSearch(LineModel(corridor), half_extent_m=8.0, coverage_m=3.0)
@@ -244,11 +245,11 @@ def _synthetic_revisit_log() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     for x, y, th in true:
         hits = world.raycast(np.tile([x, y], (180, 1)), th + angles, 20.0)
         ranges.append(np.where(np.isfinite(hits.distance_m), hits.distance_m, 81.83))
-    inc = rd.relative_poses(true[:-1], true[1:])
+    inc = relative_poses(true[:-1], true[1:])
     inc[len(out) - 1, 2] += math.radians(60.0)  # the odometry's heading error in room B
     raw = [np.zeros(3)]
     for d in inc:
-        raw.append(rd.compose_poses(raw[-1], d)[0])
+        raw.append(compose_poses(raw[-1], d)[0])
     return np.array(ranges), np.array(raw), true, np.arange(true.shape[0], dtype=float) * 3.0
 
 
@@ -270,7 +271,7 @@ def test_place_recognition_re_enters_the_first_island_after_odometry_fails() -> 
     assert back_in_a
     for j in back_in_a:  # the island-frame pose agrees with the truth
         isl = found.islands[int(found.scan_island[j])]
-        truth = rd.relative_poses(true[isl.anchor_scan], true[j])[0]
+        truth = relative_poses(true[isl.anchor_scan], true[j])[0]
         got = found.scan_pose[j]
         assert math.hypot(*(got[:2] - truth[:2])) < 0.1
-        assert abs(math.degrees(rd.wrap_angles(got[2] - truth[2]))) < 3.0
+        assert abs(math.degrees(wrap_angles(got[2] - truth[2]))) < 3.0

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from island_mapping.core.measure import MeasureConfig, cast_rays, inside_outline
-from island_mapping.core.validation import (
+from island_mapping.evaluation.validation import (
     ConfidenceMap,
     ValidationConfig,
     ValidationError,
@@ -129,7 +129,7 @@ def test_bad_config_is_named() -> None:
 
 
 def test_spearman_ceiling_of_a_two_valued_confidence() -> None:
-    from island_mapping.core.validation import spearman_ceiling
+    from island_mapping.evaluation.validation import spearman_ceiling
 
     p = 0.8
     conf = np.r_[np.ones(80), np.zeros(20)]
@@ -139,7 +139,7 @@ def test_spearman_ceiling_of_a_two_valued_confidence() -> None:
 
 
 def test_split_half_reliability_is_high_for_a_repeatable_confidence() -> None:
-    from island_mapping.core.validation import split_half_reliability
+    from island_mapping.evaluation.validation import split_half_reliability
 
     cfg = ValidationConfig(trials=4)
     good = np.repeat(np.linspace(0.0, 0.15, 30)[:, None], 4, axis=1)  # same error every trial

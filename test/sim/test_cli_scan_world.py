@@ -11,7 +11,7 @@ import pytest
 from island_mapping.cli import main
 from island_msgs_py.types import Pose2D
 from island_sim.core.sonar import SonarConfig, SonarModel
-from island_sim.core.world import load_world
+from island_sim.core.world_loader import load_world
 
 
 def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict, str]:

@@ -282,7 +282,7 @@ def test_bad_input_and_configuration_are_named() -> None:
 
 
 def test_paper_fig3_with_the_random_policy_touches_no_wall() -> None:
-    from island_sim.core.world import load_world
+    from island_sim.core.world_loader import load_world
 
     follower = HallFollower(HallFollowerConfig(policy=TurnPolicy.RANDOM), np.random.default_rng(4))
     run = simulate(load_world("paper_fig3"), follower, 200.0, seed=4)

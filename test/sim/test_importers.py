@@ -19,7 +19,8 @@ from island_sim.core.importers import (
     rectangles_to_segments,
 )
 from island_sim.core.sonar import SonarConfig, SonarModel
-from island_sim.core.world import World, WorldError, load_world
+from island_sim.core.world import World, WorldError
+from island_sim.core.world_loader import load_world
 
 
 def _png_chunk(kind: bytes, body: bytes) -> bytes:

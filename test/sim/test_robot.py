@@ -15,7 +15,6 @@ from island_sim.core.robot import (
     SimLoopConfig,
     SimRobot,
     arc_update,
-    disk_clearance_m,
     epsilon_from_covariance,
 )
 from island_sim.core.world import World
@@ -153,13 +152,6 @@ def test_epsilon_grows_with_distance_and_same_seed_same_run() -> None:
     assert not np.array_equal(end_a, end_c)
     assert all(b >= a - 1e-15 for a, b in itertools.pairwise(eps_a))
     assert eps_a[-1] > 2.0 * eps_a[100] > 0.0
-
-
-def test_disk_clearance_of_points_and_segment_ends() -> None:
-    segs = np.array([[0.0, 0.0, 1.0, 0.0], [3.0, 3.0, 3.0, 4.0]])
-    assert disk_clearance_m(segs, 0.5, 0.3) == pytest.approx(0.3)
-    assert disk_clearance_m(segs, -0.3, -0.4) == pytest.approx(0.5)
-    assert disk_clearance_m(np.zeros((0, 4)), 1.0, 1.0) == math.inf
 
 
 @pytest.mark.parametrize(

@@ -14,14 +14,14 @@ import pytest
 import rclpy
 import yaml
 from geometry_msgs.msg import TwistStamped
-from island_msgs_py.types import ControlStrategy, Pose2D
-from island_sim.conversions import (
+from island_msgs_py.conversions import (
     command_to_twist_stamped,
     ns_to_time,
     pose_to_odometry,
     time_to_ns,
 )
-from island_sim.core.world import load_world
+from island_msgs_py.types import ControlStrategy, Pose2D
+from island_sim.core.world_loader import load_world
 from island_sim.nodes.hall_follower_node import LATCHED, HallFollowerNode
 from island_sim.nodes.odometry_node import OdometryNode
 from island_sim.nodes.sonar_node import SonarNode

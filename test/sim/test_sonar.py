@@ -9,8 +9,9 @@ import sys
 import numpy as np
 import pytest
 from island_msgs_py.types import Pose2D
-from island_sim.core.sonar import SonarConfig, SonarError, SonarModel, ranges_to_points
-from island_sim.core.world import World, load_world
+from island_sim.core.sonar import SonarConfig, SonarError, SonarModel
+from island_sim.core.world import World
+from island_sim.core.world_loader import load_world
 
 IDEAL = SonarConfig(ideal=True)
 NOISELESS = SonarConfig(noise_std_m=0.0)
@@ -185,17 +186,6 @@ def test_scan_many_matches_scan() -> None:
         model.scan_many(world, np.zeros((2, 2)))
     with pytest.raises(SonarError, match="NaN"):
         model.scan_many(world, np.array([[0.0, np.nan, 0.0]]))
-
-
-def test_ranges_to_points() -> None:
-    r = np.array([1.0, np.inf, 2.0, np.nan])
-    a = np.array([0.0, 0.5, math.pi / 2, 1.0])
-    local = ranges_to_points(r, a)
-    assert local == pytest.approx(np.array([[1.0, 0.0], [0.0, 2.0]]))
-    world_pts = ranges_to_points(r, a, Pose2D(1.0, 2.0, math.pi / 2))
-    assert world_pts == pytest.approx(np.array([[1.0, 3.0], [-1.0, 2.0]]))
-    with pytest.raises(SonarError):
-        ranges_to_points(r, a[:2])
 
 
 @pytest.mark.parametrize(

@@ -10,7 +10,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from island_sim.core.world import World, WorldError, load_world, raycast, save_world
+from island_msgs_py.raycast import raycast
+from island_sim.core.world import World, WorldError, save_world
+from island_sim.core.world_loader import load_world
 from island_sim.core.worlds_builtin import BUILTIN_WORLDS, in_free_space
 
 

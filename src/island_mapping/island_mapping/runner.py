@@ -23,9 +23,9 @@ from typing import Any, TypeVar
 
 import numpy as np
 import rclpy
+from island_msgs_py.conversions import odometry_to_pose
 from island_msgs_py.ros_params import ensure_ros_env
 from island_msgs_py.types import FloatArray
-from island_sim.conversions import odometry_to_pose
 from island_sim.nodes.hall_follower_node import HallFollowerNode
 from island_sim.nodes.odometry_node import OdometryNode
 from island_sim.nodes.sonar_node import SonarNode
@@ -39,7 +39,7 @@ from std_msgs.msg import String
 
 from island_mapping.bag.recorder import RunRecorder
 from island_mapping.core.graph import TopoGraph
-from island_mapping.core.navigate import SimSetup
+from island_mapping.evaluation.navigate import SimSetup
 from island_mapping.nodes.island_builder_node import IslandBuilderNode
 from island_mapping.nodes.island_localizer_node import IslandLocalizerNode
 from island_mapping.nodes.topo_graph_server_node import TopoGraphServerNode

@@ -4,7 +4,7 @@
 ranges and the GMapping-corrected pose of the FLASER line, and the *raw* odometry reconstructed
 as ../shared/data/README.md explains for GMapping-corrected logs: every ODOM line is "the
 corrected pose of the previous scan plus the raw odometry accumulated since then", so the raw
-increment of scan step i is `relative_pose(corrected[i-1], last ODOM before scan i)` (file order;
+increment of scan step i is `relative_poses(corrected[i-1], last ODOM before scan i)` (file order;
 before the first scan the previous corrected pose is the origin), and the raw odometry poses are
 these increments composed from the origin. GMapping also writes each scan's corrected pose as an
 ODOM line right after the FLASER line (its timestamp is 0 or garbage): skipped, not odometry.
@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from island_msgs_py.geometry import compose_poses, relative_poses, wrap_angles
 from numpy.typing import NDArray
 
 from island_mapping.bag.errors import BagError, CarmenFormatError
@@ -83,37 +84,6 @@ class CarmenLog:
     @property
     def n_scans(self) -> int:
         return int(self.times_s.shape[0])
-
-
-def wrap_angle(a: FloatArray | float) -> FloatArray | float:
-    """Angles wrapped to [-pi, pi) [rad]."""
-    return (np.asarray(a) + math.pi) % (2 * math.pi) - math.pi
-
-
-def relative_pose(a: FloatArray, b: FloatArray) -> FloatArray:
-    """Pose b in the frame of pose a (rows broadcast): a^-1 (+) b."""
-    a = np.asarray(a, dtype=float)
-    b = np.asarray(b, dtype=float)
-    dx, dy = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
-    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
-    return np.stack(
-        [c * dx + s * dy, -s * dx + c * dy, wrap_angle(b[..., 2] - a[..., 2])], axis=-1
-    )
-
-
-def compose(a: FloatArray, d: FloatArray) -> FloatArray:
-    """Pose a (+) d (rows broadcast)."""
-    a = np.asarray(a, dtype=float)
-    d = np.asarray(d, dtype=float)
-    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
-    return np.stack(
-        [
-            a[..., 0] + c * d[..., 0] - s * d[..., 1],
-            a[..., 1] + s * d[..., 0] + c * d[..., 1],
-            wrap_angle(a[..., 2] + d[..., 2]),
-        ],
-        axis=-1,
-    )
 
 
 def _floats(tokens: list[str], path: Path, lineno: int, what: str) -> list[float]:
@@ -206,18 +176,20 @@ def read_carmen(path: str | os.PathLike[str]) -> CarmenLog:
     increments = np.zeros((s, 3))
     for i, od in enumerate(last_odom_before_scan):
         if od is not None:
-            increments[i] = relative_pose(prev_corr[i], np.asarray(od))
+            increments[i] = relative_poses(prev_corr[i], np.asarray(od))[0]
     raw = np.zeros((s, 3))
     pose = np.zeros(3)
     for i in range(s):
-        pose = compose(pose, increments[i])
+        pose = compose_poses(pose, increments[i])[0]
         raw[i] = pose
     # Every ODOM line as raw odometry: relative to the corrected pose of the scan before it.
     odom = np.asarray(odom_lines, dtype=float).reshape(-1, 4)
     scan_idx = np.asarray(odom_scan, dtype=np.int64)
     base_corr = np.vstack([np.zeros((1, 3)), corr])[scan_idx]
     base_raw = np.vstack([np.zeros((1, 3)), raw])[scan_idx]
-    odom_raw = compose(base_raw, relative_pose(base_corr, odom[:, :3])) if len(odom) else odom
+    odom_raw = odom
+    if len(odom):
+        odom_raw = compose_poses(base_raw, relative_poses(base_corr, odom[:, :3]))
     scan_times = np.asarray(times, dtype=float)
     odom_log_t, scan_log_t = _file_order_times(odom[:, 3].copy(), scan_idx, scan_times)
     return CarmenLog(
@@ -344,7 +316,7 @@ def import_carmen(
     # Odometry covariance: a diagonal drift model accumulated along the raw odometry.
     steps = np.diff(np.vstack([np.zeros((1, 3)), log.odom_raw]), axis=0)
     dist = np.hypot(steps[:, 0], steps[:, 1])
-    turn = np.abs(wrap_angle(steps[:, 2]))
+    turn = np.abs(wrap_angles(steps[:, 2]))
     var_xy = np.cumsum(cfg.trans_var_per_m * dist)
     var_th = np.cumsum(cfg.rot_var_per_rad * turn + cfg.rot_var_per_m * dist)
 

@@ -25,19 +25,21 @@ from typing import Any
 import numpy as np
 from island_msgs_py.json_io import atomic_write_text, pose_from_dict, pose_to_dict
 from island_msgs_py.types import Pose2D
-from island_sim.core.world import WorldError, load_world
+from island_sim.core.world import WorldError
+from island_sim.core.world_loader import load_world
 
 from island_mapping.cli import CliError
 from island_mapping.cli.params import parse_assignments, parse_node_assignments
 from island_mapping.cli.progress import ProgressBar
 from island_mapping.core.graph import TopoGraph
-from island_mapping.core.navigate import EdgeResult, NavigateError, SimSetup, evaluate_routes
 from island_mapping.core.placement import (
     PlaceKind,
     classify_place,
     feature_distance_m,
     placement_counts,
 )
+from island_mapping.evaluation.navigate import NavigateError, SimSetup
+from island_mapping.evaluation.routes import EdgeResult, evaluate_routes
 
 PROGRESS_STEPS = 1000
 """Resolution of the progress bar (per mille of the simulated duration)."""

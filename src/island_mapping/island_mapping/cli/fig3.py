@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
 
     from island_mapping.core.fisher import fisher_measure
     from island_mapping.core.measure import grid_points, inside_outline, line_measure
-    from island_mapping.core.validation import (
+    from island_mapping.evaluation.validation import (
         ValidationConfig,
         ValidationError,
         normalize,

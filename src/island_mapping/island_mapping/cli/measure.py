@@ -86,7 +86,8 @@ def parse_point(text: str) -> tuple[float, float]:
 
 def load_world_or_fail(spec: str, resolution_m: float | None = None) -> Any:
     """The world of `spec` (file or built-in name), or a CliError with the loader's message."""
-    from island_sim.core.world import WorldError, load_world
+    from island_sim.core.world import WorldError
+    from island_sim.core.world_loader import load_world
 
     try:
         world = load_world(spec, resolution_m)

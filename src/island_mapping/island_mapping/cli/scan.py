@@ -54,7 +54,8 @@ def parse_pose(text: str) -> Pose2D:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
     from island_sim.core.sonar import SonarConfig, SonarModel
-    from island_sim.core.world import WorldError, load_world
+    from island_sim.core.world import WorldError
+    from island_sim.core.world_loader import load_world
 
     pose = parse_pose(args.pose) if args.pose is not None else None
     if args.resolution is not None and not (math.isfinite(args.resolution) and args.resolution > 0):

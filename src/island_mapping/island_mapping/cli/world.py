@@ -26,7 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from island_sim.core.world import WorldError, load_world, save_world
+    from island_sim.core.world import WorldError, save_world
+    from island_sim.core.world_loader import load_world
 
     if args.resolution is not None and not (math.isfinite(args.resolution) and args.resolution > 0):
         raise CliError(f"--resolution: expected a positive pixel size in m, got {args.resolution}")

@@ -29,10 +29,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.raycast import RayCaster
 from island_msgs_py.types import FloatArray
-from island_sim.core.world import World, raycast
 
-from island_mapping.core.measure import as_points, as_world, ray_angles, tiled_chunks
+from island_mapping.core.rays import as_caster, as_points, cast_chunk, ray_angles, tiled_chunks
 
 # Rays per ray-cast call (bounds the temporaries of the brute-force caster).
 _RAYS_PER_CHUNK = 1 << 13
@@ -101,11 +101,11 @@ class FisherResult:
 
 
 def information_matrices(
-    segments: npt.ArrayLike | World, points: npt.ArrayLike, config: FisherConfig
+    segments: npt.ArrayLike | RayCaster, points: npt.ArrayLike, config: FisherConfig
 ) -> FloatArray:
     """(P, 3, 3) Fisher information at `points` (P, 2) [m] for the model `segments` (K, 4)."""
-    world = as_world(segments)
-    seg = world.segments
+    caster = as_caster(segments)
+    seg = caster.segments
     pts = as_points(points)
     angles = ray_angles(config.angular_res_deg)
     n_rays = angles.shape[0]
@@ -116,12 +116,7 @@ def information_matrices(
     per_chunk = max(1, _RAYS_PER_CHUNK // n_rays)
     for members, sub in tiled_chunks(pts, seg, config.max_range_m, per_chunk):
         nc = members.shape[0]
-        ang = np.tile(angles, nc)
-        origins = np.repeat(pts[members], n_rays, axis=0)
-        if sub is None:
-            hits = world.raycast(origins, ang, config.max_range_m)
-        else:
-            hits = raycast(seg[sub], origins, ang, config.max_range_m)
+        ang, hits = cast_chunk(caster, pts, members, sub, angles, config.max_range_m)
         ok = (hits.segment >= 0) & (hits.cos_incidence >= cos_min)
         rho = np.where(ok, hits.distance_m, 0.0)
         u = np.stack([np.cos(ang), np.sin(ang)], axis=1)
@@ -150,7 +145,7 @@ def translational_information(info: FloatArray) -> FloatArray:
 
 
 def fisher_measure(
-    segments: npt.ArrayLike | World, points: npt.ArrayLike, config: FisherConfig | None = None
+    segments: npt.ArrayLike | RayCaster, points: npt.ArrayLike, config: FisherConfig | None = None
 ) -> FisherResult:
     """Fisher information, worst-direction eigenvalue, conditioning and score (module doc)."""
     cfg = config if config is not None else FisherConfig()

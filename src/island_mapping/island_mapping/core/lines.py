@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.geometry import point_segment_distance
 from island_msgs_py.types import FloatArray, LineModel
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -187,17 +188,6 @@ def thin_evenly(points: FloatArray, max_points: int) -> FloatArray:
         return points
     keep = np.linspace(0, points.shape[0] - 1, max_points).round().astype(int)
     return points[keep]
-
-
-def point_segment_distance(points: FloatArray, segments: FloatArray) -> FloatArray:
-    """(N, K) Euclidean distances [m] from (N, 2) points to (K, 4) segments."""
-    a = segments[None, :, 0:2]
-    d = segments[None, :, 2:4] - a
-    rel = points[:, None, :] - a
-    dd = np.sum(d * d, axis=2)
-    t = np.clip(np.sum(rel * d, axis=2) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    diff = rel - t[:, :, None] * d
-    return np.asarray(np.hypot(diff[:, :, 0], diff[:, :, 1]))
 
 
 def _reassign(

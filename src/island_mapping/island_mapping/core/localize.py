@@ -33,8 +33,14 @@ from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.geometry import (
+    closest_on_segment_rows,
+    closest_on_segments,
+    from_frame,
+    point_segment_distance,
+)
+from island_msgs_py.raycast import raycast
 from island_msgs_py.types import FloatArray, LineModel, Pose2D, as_segments, wrap_angle
-from island_sim.core.world import raycast
 
 IntArray = npt.NDArray[np.int64]
 
@@ -119,6 +125,13 @@ class LocalizeConfig:
             raise LocalizeError(f"LocalizeConfig: {exc}") from None
 
 
+def point_to_line_config() -> LocalizeConfig:
+    """Localization with the Gauss-Newton point-to-line step, the default of the island tracker
+    and of route following (the Dudek-MacKenzie step reaches the same fixed point but often
+    needs more than its iteration limit)."""
+    return LocalizeConfig(solver=Solver.POINT_TO_LINE)
+
+
 @dataclass(frozen=True)
 class LocalizationResult:
     """Outcome of `localize`.
@@ -138,31 +151,6 @@ class LocalizationResult:
     matched_fraction: float
     constraint: float = 0.0
     settled: bool = False
-
-
-def closest_on_segments(
-    points: FloatArray, segments: FloatArray
-) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
-    """For (N, 2) points: index of the nearest of (K, 4) segments, the closest points (N, 2) on
-    them [m] and the distances (N,) [m]."""
-    a = segments[None, :, 0:2]
-    d = segments[None, :, 2:4] - a
-    rel = points[:, None, :] - a
-    dd = np.sum(d * d, axis=2)
-    t = np.clip(np.sum(rel * d, axis=2) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    foot = a + t[:, :, None] * d
-    diff = points[:, None, :] - foot
-    dist2 = np.sum(diff * diff, axis=2)
-    best = np.argmin(dist2, axis=1)
-    rows = np.arange(points.shape[0])
-    return best.astype(np.int64), foot[rows, best], np.sqrt(dist2[rows, best])
-
-
-def _transform(points_robot: FloatArray, pose: FloatArray) -> FloatArray:
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    x = points_robot[:, 0] * c - points_robot[:, 1] * s + pose[0]
-    y = points_robot[:, 0] * s + points_robot[:, 1] * c + pose[1]
-    return np.stack([x, y], axis=1)
 
 
 def _model_segments(model: LineModel | npt.ArrayLike) -> FloatArray:
@@ -204,7 +192,7 @@ def localize(
     if seg.shape[0] == 0 or pts.shape[0] < cfg.min_points:
         return LocalizationResult(initial, math.inf, 0, False, 0.0, 0.0)
     reach = float(np.max(np.hypot(pts[:, 0], pts[:, 1])))
-    return _iterate(seg, lambda pose, _seg: (_transform(pts, pose), None), reach, initial, cfg)
+    return _iterate(seg, lambda pose, _seg: (from_frame(pts, pose), None), reach, initial, cfg)
 
 
 @dataclass(frozen=True, eq=False)
@@ -293,7 +281,7 @@ def _iterate(
     frame and optionally (N,) the segment each must be paired with (-1: the nearest)."""
     pose = initial.as_array()
     # Only segments that a matched point could reach matter.
-    near = _segment_distance_to(pose[0:2], seg) <= reach_m + cfg.max_match_dist_m + 1.0
+    near = point_segment_distance(pose[None, 0:2], seg)[0] <= reach_m + cfg.max_match_dist_m + 1.0
     seg = seg[near] if np.any(near) else seg
     seg_len = np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
     seg_normal = np.stack([-(seg[:, 3] - seg[:, 1]), seg[:, 2] - seg[:, 0]], axis=1)
@@ -366,26 +354,9 @@ def _pair(
         return idx, foot, dist
     has = np.flatnonzero(assoc >= 0)
     if has.size:
-        s = seg[assoc[has]]
-        a, d = s[:, 0:2], s[:, 2:4] - s[:, 0:2]
-        rel = points[has] - a
-        dd = np.sum(d * d, axis=1)
-        t = np.clip(np.sum(rel * d, axis=1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-        f = a + t[:, None] * d
         idx[has] = assoc[has]
-        foot[has] = f
-        dist[has] = np.hypot(points[has, 0] - f[:, 0], points[has, 1] - f[:, 1])
+        foot[has], dist[has] = closest_on_segment_rows(points[has], seg[assoc[has]])
     return idx, foot, dist
-
-
-def _segment_distance_to(point: FloatArray, seg: FloatArray) -> FloatArray:
-    """(K,) distances [m] from one (2,) point to (K, 4) segments."""
-    a = seg[:, 0:2]
-    d = seg[:, 2:4] - a
-    dd = np.sum(d * d, axis=1)
-    t = np.clip(np.sum((point - a) * d, axis=1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    diff = point - (a + t[:, None] * d)
-    return np.asarray(np.hypot(diff[:, 0], diff[:, 1]))
 
 
 def _weights(d: FloatArray, cfg: LocalizeConfig) -> FloatArray:

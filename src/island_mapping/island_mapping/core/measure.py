@@ -3,7 +3,7 @@
 Semantics (exactly; anyone can recompute it from this docstring):
 
 - From a point p, rays leave every `angular_res_deg` over 360 deg (ray j at angle j * res).
-- Each ray's FIRST hit (occlusion) is found with `island_sim.core.world.raycast`, the project's
+- Each ray's FIRST hit (occlusion) is found with `island_msgs_py.raycast`, the project's
   only ray caster: distance d [m], hit segment i and incidence cosine |N_i . u|.
 - A ray counts for segment i when d <= `max_range_m` and its incidence angle (between the ray
   and the wall normal) is <= `reflect_deg` (specular sonar: steeper rays give no echo).
@@ -26,30 +26,26 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
-from island_msgs_py.types import FloatArray, ModelType, as_segments
-from island_sim.core.world import World, raycast
+from island_msgs_py.raycast import RayCaster
+from island_msgs_py.types import FloatArray, ModelType
 
-if TYPE_CHECKING:  # fisher imports this module at run time
-    from island_mapping.core.fisher import FisherConfig
+from island_mapping.core.fisher import FisherConfig, fisher_measure
+from island_mapping.core.rays import (
+    MeasureError,
+    as_caster,
+    as_points,
+    cast_chunk,
+    ray_angles,
+    tiled_chunks,
+)
 
 # Rays per ray-cast call: small enough to stay in cache (measured 2x faster than 1 << 17).
 _RAYS_PER_CHUNK = 1 << 13
-# Side of the point tiles whose near segments are cast against [m].
-_TILE_M = 2.0
-# Worlds with at most this many segments are cast whole (tiling would not pay).
-_TILE_MIN_SEGMENTS = 12
-# Tiles whose near segments exceed this use the world's spatial index instead of brute force.
-_TILE_MAX_SUBSET = 64
 # Upper bound on (points x segments) bins held at once by the per-segment bincount.
 _BINS_PER_CHUNK = 1 << 23
-
-
-class MeasureError(ValueError):
-    """Bad input to the measure (the message names the argument and the problem)."""
 
 
 @dataclass(frozen=True)
@@ -161,20 +157,6 @@ class RayBundle:
     dtheta_rad: float
 
 
-def as_points(points: npt.ArrayLike, name: str = "points") -> FloatArray:
-    """Validate (P, 2) finite points [m] (a single (2,) point becomes (1, 2))."""
-    arr = np.asarray(points, dtype=np.float64)
-    if arr.ndim == 1 and arr.shape[0] == 2:
-        arr = arr[None, :]
-    if arr.size == 0:
-        return np.zeros((0, 2))
-    if arr.ndim != 2 or arr.shape[1] != 2:
-        raise MeasureError(f"{name}: expected a (P, 2) array of x, y [m], got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise MeasureError(f"{name}: contains a NaN or infinite coordinate")
-    return arr
-
-
 def segment_normals(segments: FloatArray) -> FloatArray:
     """(K, 2) unit normals (left of the direction p1 -> p2) of (K, 4) segments."""
     d = segments[:, 2:4] - segments[:, 0:2]
@@ -183,21 +165,8 @@ def segment_normals(segments: FloatArray) -> FloatArray:
     return np.stack([-d[:, 1], d[:, 0]], axis=1) / length[:, None]
 
 
-def ray_angles(angular_res_deg: float) -> FloatArray:
-    """(n,) ray angles [rad]: j * angular_res_deg for j = 0 .. round(360 / res) - 1."""
-    n = max(1, round(360.0 / angular_res_deg))
-    return np.arange(n, dtype=np.float64) * math.radians(angular_res_deg)
-
-
-def as_world(segments: npt.ArrayLike | World) -> World:
-    """A `World` over the segments (its spatial index makes ray casting fast on big models)."""
-    if isinstance(segments, World):
-        return segments
-    return World(as_segments(segments), name="model")
-
-
 def cast_rays(
-    segments: npt.ArrayLike | World,
+    segments: npt.ArrayLike | RayCaster,
     points: npt.ArrayLike,
     angular_res_deg: float,
     max_range_m: float,
@@ -205,11 +174,11 @@ def cast_rays(
 ) -> RayBundle:
     """Cast all rays of all `points` (P, 2) [m] and keep the counted ones (range, reflectance).
 
-    Rays go to `World.raycast` (island_sim's ray caster with its spatial index; identical to
-    the brute-force `raycast`).
+    Rays go tile by tile to the model's spatial index or, for tiles near few segments, to the
+    brute-force caster (`rays.tiled_chunks`; identical hits either way).
     """
-    world = as_world(segments)
-    seg = world.segments
+    caster = as_caster(segments)
+    seg = caster.segments
     pts = as_points(points)
     angles = ray_angles(angular_res_deg)
     n_rays = angles.shape[0]
@@ -221,24 +190,15 @@ def cast_rays(
     keep_c: list[FloatArray] = []
     if p_count and k_count:
         pts_per_chunk = max(1, _RAYS_PER_CHUNK // n_rays)
-        for group, sub in _tiles(pts, seg, max_range_m):
-            for s in range(0, group.shape[0], pts_per_chunk):
-                members = group[s : s + pts_per_chunk]
-                origins = np.repeat(pts[members], n_rays, axis=0)
-                ang = np.tile(angles, members.shape[0])
-                if sub is None:
-                    hits = world.raycast(origins, ang, max_range_m)
-                    hit_seg = hits.segment
-                else:
-                    hits = raycast(seg[sub], origins, ang, max_range_m)
-                    hit_seg = np.where(hits.segment >= 0, sub[np.maximum(hits.segment, 0)], -1)
-                ok = (hit_seg >= 0) & (hits.distance_m <= max_range_m)
-                ok &= hits.cos_incidence >= cos_min
-                idx = np.flatnonzero(ok)
-                keep_p.append(members[idx // n_rays])
-                keep_s.append(hit_seg[idx])
-                keep_d.append(hits.distance_m[idx])
-                keep_c.append(hits.cos_incidence[idx])
+        for members, sub in tiled_chunks(pts, seg, max_range_m, pts_per_chunk):
+            _, hits = cast_chunk(caster, pts, members, sub, angles, max_range_m)
+            ok = (hits.segment >= 0) & (hits.distance_m <= max_range_m)
+            ok &= hits.cos_incidence >= cos_min
+            idx = np.flatnonzero(ok)
+            keep_p.append(members[idx // n_rays])
+            keep_s.append(hits.segment[idx])
+            keep_d.append(hits.distance_m[idx])
+            keep_c.append(hits.cos_incidence[idx])
 
     def cat_i(xs: list[npt.NDArray[np.int64]]) -> npt.NDArray[np.int64]:
         return np.concatenate(xs).astype(np.int64) if xs else np.zeros(0, dtype=np.int64)
@@ -258,47 +218,6 @@ def cast_rays(
         n_segments=k_count,
         dtheta_rad=math.radians(angular_res_deg),
     )
-
-
-def _tiles(
-    pts: FloatArray, seg: FloatArray, max_range_m: float
-) -> list[tuple[npt.NDArray[np.int64], npt.NDArray[np.int64] | None]]:
-    """Points grouped in square tiles with the segments a ray from the tile can hit within range.
-
-    A segment farther than max_range_m from a tile's box cannot give a counted hit, nor occlude
-    one (a hit beyond range does not count), so casting against the near segments only gives
-    the same counted hits. Small subsets go to the brute-force `raycast` (the same caster as
-    `World.raycast`); large ones (None) to the world's spatial index.
-    """
-    everything = np.arange(pts.shape[0], dtype=np.int64)
-    if not math.isfinite(max_range_m) or seg.shape[0] <= _TILE_MIN_SEGMENTS:
-        return [(everything, None)]
-    lo_seg = np.minimum(seg[:, 0:2], seg[:, 2:4])
-    hi_seg = np.maximum(seg[:, 0:2], seg[:, 2:4])
-    key = np.floor((pts - pts.min(axis=0)) / _TILE_M).astype(np.int64)
-    tile_id = key[:, 0] * (int(key[:, 1].max()) + 1) + key[:, 1]
-    order = np.argsort(tile_id, kind="stable")
-    cuts = np.flatnonzero(np.diff(tile_id[order])) + 1
-    out: list[tuple[npt.NDArray[np.int64], npt.NDArray[np.int64] | None]] = []
-    for group in np.split(order, cuts):
-        box_lo = pts[group].min(axis=0) - max_range_m
-        box_hi = pts[group].max(axis=0) + max_range_m
-        near = np.all(hi_seg >= box_lo, axis=1) & np.all(lo_seg <= box_hi, axis=1)
-        sub = np.flatnonzero(near).astype(np.int64)
-        out.append((group.astype(np.int64), sub if sub.size <= _TILE_MAX_SUBSET else None))
-    return out
-
-
-def tiled_chunks(
-    pts: FloatArray, seg: FloatArray, max_range_m: float, per_chunk: int
-) -> list[tuple[npt.NDArray[np.int64], npt.NDArray[np.int64] | None]]:
-    """(point indices, near-segment indices or None) in chunks of at most `per_chunk` points,
-    tile by tile (see `_tiles`)."""
-    out = []
-    for group, sub in _tiles(pts, seg, max_range_m):
-        for s in range(0, group.shape[0], per_chunk):
-            out.append((group[s : s + per_chunk], sub))
-    return out
 
 
 def sigmoid_filter(c_values: FloatArray, cutoff: float, exponent: float) -> FloatArray:
@@ -374,14 +293,14 @@ def measure_from_bundle(bundle: RayBundle, config: MeasureConfig) -> MeasureResu
 
 
 def line_measure(
-    segments: npt.ArrayLike | World, points: npt.ArrayLike, config: MeasureConfig | None = None
+    segments: npt.ArrayLike | RayCaster, points: npt.ArrayLike, config: MeasureConfig | None = None
 ) -> MeasureResult:
     """The measure at `points` (P, 2) [m] of a line model `segments` (K, 4) [m]; see module doc.
 
     With config.eps_m > 0, r_eps is the mean of r over each point's averaging square.
     """
     cfg = config if config is not None else MeasureConfig()
-    seg = as_world(segments)
+    seg = as_caster(segments)
     pts = as_points(points)
     bundle = cast_rays(seg, pts, cfg.angular_res_deg, cfg.max_range_m, cfg.reflect_deg)
     res = measure_from_bundle(bundle, cfg)
@@ -413,7 +332,7 @@ def grid_points(
 
 
 def measure_map(
-    segments: npt.ArrayLike | World,
+    segments: npt.ArrayLike | RayCaster,
     bounds: tuple[float, float, float, float],
     resolution_m: float,
     config: MeasureConfig | None = None,
@@ -428,10 +347,10 @@ def measure_map(
     and R is its box mean (identical values, (2 eps / step + 1)^2 times fewer rays).
     """
     cfg = config if config is not None else MeasureConfig()
-    world = as_world(segments)
+    caster = as_caster(segments)
     xs, ys, pts = grid_points(bounds, resolution_m)
     shape = (ys.shape[0], xs.shape[0])
-    keep = inside_outline(world, pts) if only_inside else np.ones(pts.shape[0], dtype=bool)
+    keep = inside_outline(caster, pts) if only_inside else np.ones(pts.shape[0], dtype=bool)
     if cfg.eps_m > 0 and math.isclose(cfg.eps_step_m, resolution_m, rel_tol=1e-9):
         # The averaging square's grid is the map's grid: R is a box mean of r on a grid padded
         # by the half width, each r cast once instead of once per neighbour.
@@ -440,13 +359,13 @@ def measure_map(
         pxs = np.concatenate([xs[0] + pad, xs, xs[-1] - pad[::-1]])
         pys = np.concatenate([ys[0] + pad, ys, ys[-1] - pad[::-1]])
         gx, gy = np.meshgrid(pxs, pys, indexing="xy")
-        r = line_measure(world, np.stack([gx.ravel(), gy.ravel()], axis=1),
+        r = line_measure(caster, np.stack([gx.ravel(), gy.ravel()], axis=1),
                          replace(cfg, eps_m=0.0)).r.reshape(pys.shape[0], pxs.shape[0])
         box = _box_mean(r, half)
         return xs, ys, np.where(keep.reshape(shape), box, np.nan)
     values = np.full(pts.shape[0], np.nan)
     if np.any(keep):
-        values[keep] = line_measure(world, pts[keep], cfg).r_eps
+        values[keep] = line_measure(caster, pts[keep], cfg).r_eps
     return xs, ys, values.reshape(shape)
 
 
@@ -468,17 +387,19 @@ _PARITY_STEP_M = 1e-7
 _PARITY_MAX_CROSSINGS = 10_000
 
 
-def inside_outline(segments: npt.ArrayLike | World, points: npt.ArrayLike) -> npt.NDArray[np.bool_]:
+def inside_outline(
+    segments: npt.ArrayLike | RayCaster, points: npt.ArrayLike
+) -> npt.NDArray[np.bool_]:
     """(P,) True where a point is inside the closed outlines of the walls (crossing parity).
 
     For worlds whose walls trace the free space (built-in worlds, HouseExpo and image imports)
-    this is "in free space". Each ray is cast with `World.raycast` repeatedly from just beyond
+    this is "in free space". Each ray is cast with the model's caster repeatedly from just beyond
     its last hit and the hits are counted; odd = inside. Three directions vote.
     """
-    world = as_world(segments)
+    caster = as_caster(segments)
     pts = as_points(points)
     votes = np.zeros(pts.shape[0], dtype=np.int64)
-    if world.segments.shape[0] == 0 or pts.shape[0] == 0:
+    if caster.segments.shape[0] == 0 or pts.shape[0] == 0:
         return votes > 0
     for ang in _PARITY_ANGLES_RAD:
         u = np.array([math.cos(ang), math.sin(ang)])
@@ -488,7 +409,7 @@ def inside_outline(segments: npt.ArrayLike | World, points: npt.ArrayLike) -> np
         for _ in range(_PARITY_MAX_CROSSINGS):
             if active.size == 0:
                 break
-            hits = world.raycast(origin[active], np.full(active.size, ang))
+            hits = caster.raycast(origin[active], np.full(active.size, ang))
             hit = hits.segment >= 0
             active = active[hit]
             count[active] += 1
@@ -507,14 +428,11 @@ def evaluate_models(
 
     The island builder divides each by its acceptance threshold T_i (eq. 3).
     """
-    from island_mapping.core.fisher import FisherConfig as _FisherConfig
-    from island_mapping.core.fisher import fisher_measure
-
     pt = as_points(point, "point")
     if pt.shape[0] != 1:
         raise MeasureError(f"point: expected one (2,) point, got {pt.shape[0]}")
-    fcfg = fisher_cfg if isinstance(fisher_cfg, _FisherConfig) else _FisherConfig()
-    if fisher_cfg is not None and not isinstance(fisher_cfg, _FisherConfig):
+    fcfg = fisher_cfg if isinstance(fisher_cfg, FisherConfig) else FisherConfig()
+    if fisher_cfg is not None and not isinstance(fisher_cfg, FisherConfig):
         raise MeasureError(f"fisher_cfg: expected a FisherConfig, got {type(fisher_cfg).__name__}")
     line = line_measure(segments, pt, line_cfg)
     fish = fisher_measure(segments, pt, fcfg)

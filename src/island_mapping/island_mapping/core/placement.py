@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 
 import numpy as np
+from island_msgs_py.raycast import raycast
 from island_msgs_py.types import FloatArray, Pose2D
-from island_sim.core.world import raycast
 
 PARALLEL_TOL_DEG = 10.0
 """Walls within this angle of each other count as parallel (the worlds are drawn axis-aligned)."""

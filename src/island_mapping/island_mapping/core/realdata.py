@@ -23,10 +23,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.geometry import (
+    compose_poses,
+    from_frame,
+    point_segment_distance,
+    relative_poses,
+    wrap_angles,
+)
 from island_msgs_py.types import Island, LineModel, ModelType, Pose2D
 
 from island_mapping.core.builder import BuilderConfig, eq3_bound, normalized_measures
-from island_mapping.core.lines import LASER_LINE_FIT, LineFitConfig, point_segment_distance
+from island_mapping.core.lines import LASER_LINE_FIT, LineFitConfig
 from island_mapping.core.localize import LocalizeConfig, localize
 from island_mapping.core.measure import MeasureConfig
 
@@ -50,12 +57,6 @@ class RealDataError(ValueError):
 # --------------------------------------------------------------------------------------------
 
 
-def wrap_angles(theta_rad: npt.ArrayLike) -> FloatArray:
-    """Wrap angles [rad] to [-pi, pi)."""
-    a = np.asarray(theta_rad, dtype=np.float64)
-    return np.asarray((a + np.pi) % (2.0 * np.pi) - np.pi, dtype=np.float64)
-
-
 def _as_poses(a: npt.ArrayLike, name: str) -> FloatArray:
     arr = np.asarray(a, dtype=np.float64)
     if arr.ndim == 1:
@@ -63,36 +64,6 @@ def _as_poses(a: npt.ArrayLike, name: str) -> FloatArray:
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise RealDataError(f"{name}: expected (N, 3) poses (x, y, theta), got {arr.shape}")
     return arr
-
-
-def relative_poses(a: npt.ArrayLike, b: npt.ArrayLike) -> FloatArray:
-    """Poses b expressed in the frames of poses a (a^-1 (+) b), row by row; (N, 3)."""
-    pa, pb = _as_poses(a, "a"), _as_poses(b, "b")
-    c, s = np.cos(pa[:, 2]), np.sin(pa[:, 2])
-    dx, dy = pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1]
-    return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap_angles(pb[:, 2] - pa[:, 2])], axis=1)
-
-
-def compose_poses(a: npt.ArrayLike, b: npt.ArrayLike) -> FloatArray:
-    """a (+) b row by row: b given in the frame of a, returned in a's parent frame; (N, 3)."""
-    pa, pb = _as_poses(a, "a"), _as_poses(b, "b")
-    c, s = np.cos(pa[:, 2]), np.sin(pa[:, 2])
-    return np.stack(
-        [
-            pa[:, 0] + c * pb[:, 0] - s * pb[:, 1],
-            pa[:, 1] + s * pb[:, 0] + c * pb[:, 1],
-            wrap_angles(pa[:, 2] + pb[:, 2]),
-        ],
-        axis=1,
-    )
-
-
-def transform_points(pose: npt.ArrayLike, points: npt.ArrayLike) -> FloatArray:
-    """(N, 2) points [m] given in the frame of `pose` (x, y, theta), returned in its parent."""
-    p = np.asarray(pose, dtype=np.float64).reshape(3)
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    c, s = math.cos(p[2]), math.sin(p[2])
-    return np.stack([p[0] + c * pts[:, 0] - s * pts[:, 1], p[1] + s * pts[:, 0] + c * pts[:, 1]], 1)
 
 
 def relative_pose_errors(
@@ -781,7 +752,7 @@ def _fix_ok(
         return False
     if cfg.min_inlier_fraction <= 0 or len(model) == 0:
         return True
-    dist = point_segment_distance(transform_points(fix.pose, points), model.segments).min(axis=1)
+    dist = point_segment_distance(from_frame(points, fix.pose), model.segments).min(axis=1)
     return bool(np.mean(dist <= cfg.inlier_dist_m) >= cfg.min_inlier_fraction)
 
 
@@ -1020,7 +991,7 @@ def _recognize(
         return None
     if math.hypot(fix.pose[0], fix.pose[1]) > cfg.coverage_radius_m:
         return None
-    d = point_segment_distance(transform_points(fix.pose, pts), model.segments).min(axis=1)
+    d = point_segment_distance(from_frame(pts, fix.pose), model.segments).min(axis=1)
     if np.mean(d <= cfg.inlier_dist_m) < cfg.recognition_min_inliers:
         return None
     return k, fix.pose
@@ -1051,7 +1022,7 @@ def _window_model(
             if _fix_ok(fix, guess, cfg, pts, anchor_model):
                 pose = fix.pose
         placed.append((j, pose))
-        clouds.append(transform_points(pose, pts))
+        clouds.append(from_frame(pts, pose))
         if cfg.align_window and j == anchor:
             anchor_model = fit(voxel_thin(pts, cfg.voxel_m))
     all_pts = np.concatenate(clouds) if clouds else np.zeros((0, 2))

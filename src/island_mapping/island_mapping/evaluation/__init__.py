@@ -4,4 +4,11 @@ The only layer of island_mapping besides the app layer (cli, runner) that may im
 it drives a simulated robot to measure what the core builds (offline exploration, route
 following against the world's truth, confidence maps, the world's own places). It never imports
 rclpy; nodes never import it.
+
+- `navigate`: NavigateConfig, SimSetup, SimDriver, execute_strategy (the simulated robot driven
+  by strategies); `docking`: look_around, localize_multi, localize_and_dock;
+- `routes`: follow_route, follow_route_global_odometry, evaluate_routes (routes by the map vs
+  global odometry); `explore`: explore, ExplorationResult (offline exploration, deterministic);
+- `validation`: confidence maps with the simulated sonar vs the measures (run_validation).
+Import from the modules: this package module re-exports nothing.
 """

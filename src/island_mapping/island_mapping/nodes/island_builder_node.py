@@ -22,16 +22,16 @@ from collections.abc import Sequence
 from typing import Any
 
 from geometry_msgs.msg import TwistStamped
-from island_msgs_py.qos import LATCHED, STREAM_QOS
-from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
-from island_msgs_py.types import ControlStrategy, IslandTypeError
-from island_sim.conversions import (
+from island_msgs_py.conversions import (
     ConversionError,
     command_to_twist_stamped,
     odometry_to_pose,
     scan_to_arrays,
     time_to_ns,
 )
+from island_msgs_py.qos import LATCHED, STREAM_QOS
+from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
+from island_msgs_py.types import ControlStrategy, IslandTypeError
 from nav_msgs.msg import Odometry
 from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node

@@ -6,8 +6,8 @@ Subscribes  /island_builder/events  std_msgs/String (JSON): `island_accepted` ev
             /sonar/scan             sensor_msgs/LaserScan
 Publishes   /island_pose            geometry_msgs/PoseWithCovarianceStamped, frame_id = the
                                     island's frame (`island_<id>`), stamped with the scan time
-Each scan is paired with the odometry of the same stamp (island_sim.core.stamps). The logic is
-island_mapping.core.navigate.IslandTracker.
+Each scan is paired with the odometry of the same stamp (island_msgs_py.stamps). The logic is
+island_mapping.core.tracker.IslandTracker.
 """
 
 from __future__ import annotations
@@ -18,19 +18,17 @@ from collections.abc import Sequence
 from typing import Any
 
 from geometry_msgs.msg import PoseWithCovarianceStamped
+from island_msgs_py.conversions import ns_to_time
 from island_msgs_py.json_io import GraphFormatError
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
+from island_msgs_py.scan_inputs import subscribe_paired_scans
+from island_msgs_py.stamps import Paired
 from island_msgs_py.types import FloatArray, IslandTypeError
-from island_sim.conversions import (
-    ns_to_time,
-)
-from island_sim.core.stamps import Paired
-from island_sim.scan_inputs import subscribe_paired_scans
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from island_mapping.core.navigate import IslandTracker, TrackerConfig
+from island_mapping.core.tracker import IslandTracker, TrackerConfig
 from island_msgs_py import conversions as cv
 from island_msgs_py import json_io
 

@@ -27,6 +27,7 @@ from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.geometry import wrap_angles
 from island_msgs_py.types import (
     ControlStrategy,
     FloatArray,
@@ -419,7 +420,7 @@ class HallFollower:
         if not np.all(np.isfinite(a)):
             raise HallFollowerError("update: angles_rad contains a NaN or infinite bearing")
         r = np.where(np.isnan(r) | (r <= 0), np.inf, r)
-        a = np.arctan2(np.sin(a), np.cos(a))
+        a = wrap_angles(a)
         ok = np.isfinite(r)
         rr = np.where(ok, r, 0.0)
         x = np.where(ok, rr * np.cos(a), np.nan)
@@ -434,7 +435,7 @@ class HallFollower:
             front = min(front, float(np.min(x[in_path])))
 
         def side(sign: float) -> tuple[bool, float, float | None]:
-            off = np.abs(wrap_angle_arr(a - sign * math.pi / 2.0))
+            off = np.abs(wrap_angles(a - sign * math.pi / 2.0))
             perp = int(np.argmin(off))
             perp_m = float(r[perp] * abs(math.sin(a[perp])))
             is_open = not perp_m <= c.open_side_m
@@ -674,9 +675,3 @@ class HallFollower:
         # turn first, then go: a large heading error slows the robot down
         speed_scale *= max(0.0, 1.0 - abs(err) / math.radians(45.0))
         return c.cruise_speed_mps * speed_scale, w
-
-
-def wrap_angle_arr(a: npt.ArrayLike) -> FloatArray:
-    """Element-wise angle wrap [rad] to (-pi, pi]."""
-    arr = np.asarray(a, dtype=np.float64)
-    return np.arctan2(np.sin(arr), np.cos(arr))

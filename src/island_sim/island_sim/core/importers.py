@@ -20,16 +20,21 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from island_msgs_py.types import FloatArray, Pose2D
+from island_msgs_py.geometry import clearance_m, closest_on_segment_rows
+from island_msgs_py.types import FloatArray
 from scipy import ndimage
 
-from island_sim.core.world import World, WorldError
+from island_sim.core.world import (
+    World,
+    WorldError,
+    enclosed_start_pose,
+    read_structured,
+    start_pose_from_clearance,
+)
 
 BoolArray = npt.NDArray[np.bool_]
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-# Bearings tried when choosing the start heading (the longest free ray wins) [-].
-_START_BEARINGS = 72
 
 
 @dataclass(frozen=True)
@@ -381,7 +386,11 @@ def _douglas_peucker(pts: FloatArray, tol: float) -> FloatArray:
         if i1 - i0 < 2:
             continue
         mid = pts[i0 + 1 : i1]
-        d = _point_segment_distance(mid, pts[i0], pts[i1])
+        chord = np.broadcast_to(np.concatenate([pts[i0], pts[i1]]), (mid.shape[0], 4))
+        foot, _ = closest_on_segment_rows(mid, chord)
+        # Lattice points tie at whole-pixel distances: this rounding (norm of p - foot) decides
+        # them as the traced worlds were made (Willow: 3550 walls).
+        d = np.linalg.norm(mid - foot, axis=1)
         k = int(np.argmax(d))
         if d[k] > tol:
             km = i0 + 1 + k
@@ -389,71 +398,6 @@ def _douglas_peucker(pts: FloatArray, tol: float) -> FloatArray:
             stack.append((i0, km))
             stack.append((km, i1))
     return pts[keep]
-
-
-def _point_segment_distance(p: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
-    ab = b - a
-    den = float(ab @ ab)
-    if den == 0.0:
-        return np.linalg.norm(p - a, axis=1)
-    t = np.clip(((p - a) @ ab) / den, 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
-
-
-# ----------------------------------------------------------------------------- start poses
-
-
-def start_pose_from_clearance(
-    world: World, candidates_m: FloatArray, clearance_m: FloatArray
-) -> Pose2D:
-    """The candidate point with the largest clearance, facing its longest free ray.
-
-    candidates_m: (K, 2) points [m]; clearance_m: (K,) distance to the nearest wall [m].
-    """
-    if candidates_m.shape[0] == 0:
-        raise WorldError(f"world {world.name!r}: cannot choose a start pose, no free space")
-    best = int(np.argmax(clearance_m))
-    x, y = (float(v) for v in candidates_m[best])
-    bearings = np.linspace(-math.pi, math.pi, _START_BEARINGS, endpoint=False)
-    ranges = world.raycast(np.array([[x, y]]), bearings).distance_m
-    ranges = np.where(np.isfinite(ranges), ranges, -1.0)
-    return Pose2D(x, y, float(bearings[int(np.argmax(ranges))]))
-
-
-def enclosed_start_pose(world: World, step_m: float = 0.25) -> Pose2D:
-    """A start pose for a world without one: the enclosed grid point farthest from any wall.
-
-    A point is enclosed when rays in 8 directions all hit a wall.
-    """
-    if world.segments.shape[0] == 0:
-        return Pose2D(0.0, 0.0, 0.0)
-    x0, y0, x1, y1 = world.bounds
-    nx = max(2, min(100, int((x1 - x0) / step_m)))
-    ny = max(2, min(100, int((y1 - y0) / step_m)))
-    gx, gy = np.meshgrid(np.linspace(x0, x1, nx + 2)[1:-1], np.linspace(y0, y1, ny + 2)[1:-1])
-    pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
-    dirs = np.linspace(0.0, 2.0 * math.pi, 8, endpoint=False)
-    hits = world.raycast(np.repeat(pts, 8, axis=0), np.tile(dirs, pts.shape[0]))
-    enclosed = np.all(np.isfinite(hits.distance_m.reshape(-1, 8)), axis=1)
-    if not np.any(enclosed):
-        enclosed[:] = True
-    pts = pts[enclosed]
-    clearance = _clearance(pts, world.segments)
-    return start_pose_from_clearance(world, pts, clearance)
-
-
-def _clearance(pts: FloatArray, segs: FloatArray) -> FloatArray:
-    """(K,) distance [m] from each point to the nearest segment."""
-    out = np.full(pts.shape[0], np.inf)
-    a, ab = segs[:, 0:2], segs[:, 2:4] - segs[:, 0:2]
-    den = np.maximum(np.sum(ab * ab, axis=1), 1e-300)
-    step = max(1, (1 << 20) // max(1, segs.shape[0]))
-    for s in range(0, pts.shape[0], step):
-        p = pts[s : s + step, None, :]
-        t = np.clip(np.sum((p - a) * ab, axis=2) / den, 0.0, 1.0)
-        d = np.linalg.norm(p - (a + t[:, :, None] * ab), axis=2)
-        out[s : s + step] = d.min(axis=1)
-    return out
 
 
 # ----------------------------------------------------------------------------- importers
@@ -496,8 +440,6 @@ def import_houseexpo(path: str | Path, data: dict[str, Any] | None = None) -> Wo
     """World from a HouseExpo JSON file: `verts` is a closed wall polygon [m]."""
     p = Path(path)
     if data is None:
-        from island_sim.core.world import read_structured  # local: avoids a cycle at import
-
         data = read_structured(p)
     verts = _as_points(data.get("verts"), p, "verts")
     if verts.shape[0] < 3:
@@ -516,7 +458,7 @@ def import_houseexpo(path: str | Path, data: dict[str, Any] | None = None) -> Wo
     pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
     inside = _inside_polygon(pts, verts)
     pts = pts[inside]
-    start = start_pose_from_clearance(world, pts, _clearance(pts, segs))
+    start = start_pose_from_clearance(world, pts, clearance_m(pts, segs))
     return World(world.segments, name=name, start_pose=start)
 
 

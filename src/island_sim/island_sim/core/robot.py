@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.geometry import clearance_m
 from island_msgs_py.types import FloatArray, Pose2D, wrap_angle
 
 from island_sim.core.world import World
@@ -401,21 +402,6 @@ def epsilon_from_covariance(cov: npt.ArrayLike) -> float:
     return float(math.sqrt(max(float(ev[-1]), 0.0)))
 
 
-def disk_clearance_m(segments: FloatArray, x_m: float, y_m: float) -> float:
-    """Distance [m] from the point (x, y) to the nearest wall segment (inf without walls)."""
-    if segments.shape[0] == 0:
-        return math.inf
-    p = segments[:, 0:2]
-    d = segments[:, 2:4] - p
-    wx, wy = x_m - p[:, 0], y_m - p[:, 1]
-    dd = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(dd > 0, (wx * d[:, 0] + wy * d[:, 1]) / dd, 0.0)
-    t = np.clip(t, 0.0, 1.0)
-    ex, ey = wx - t * d[:, 0], wy - t * d[:, 1]
-    return float(math.sqrt(float(np.min(ex * ex + ey * ey))))
-
-
 @dataclass(frozen=True)
 class StepResult:
     """What one physics step did: true and odometric increments, and whether a wall stopped it."""
@@ -500,7 +486,7 @@ class SimRobot:
 
     def _centre_clearance_m(self) -> float:
         if self._clearance_cache is None:
-            self._clearance_cache = disk_clearance_m(self._segments, self._true[0], self._true[1])
+            self._clearance_cache = float(clearance_m(self._true[None, 0:2], self._segments)[0])
         return self._clearance_cache
 
     # --- odometry model ------------------------------------------------------------------------
@@ -541,7 +527,7 @@ class SimRobot:
         if ds != 0.0:
             cand = arc_update(self._true, ds, dth)
             before = self._centre_clearance_m()
-            after = disk_clearance_m(self._segments, cand[0], cand[1])
+            after = float(clearance_m(cand[None, 0:2], self._segments)[0])
             if after < self.robot.radius_m and after < before - _CLEARANCE_EPS_M:
                 blocked = True  # the disk would enter a wall: the wheels stop, rotation only
                 ds = 0.0

@@ -205,22 +205,3 @@ class SonarModel:
             echo = np.where((echo >= c.range_min_m) & (echo <= c.range_max_m), echo, np.inf)
         return np.where(np.isfinite(echo), echo + c.ring_radius_m, np.inf)
 
-
-def ranges_to_points(
-    ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike, pose: Pose2D | None = None
-) -> FloatArray:
-    """(K, 2) points [m] of finite ranges (from the robot centre) along `angles_rad` (robot frame).
-
-    Drops inf/NaN readings. With `pose`, points are returned in the pose's parent frame (e.g.
-    the world); without, in the robot frame.
-    """
-    r = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
-    a = np.asarray(angles_rad, dtype=np.float64).reshape(-1)
-    if r.shape != a.shape:
-        raise SonarError(f"ranges_to_points: {r.shape[0]} ranges but {a.shape[0]} angles")
-    ok = np.isfinite(r) & np.isfinite(a)
-    r, a = r[ok], a[ok]
-    if pose is not None:
-        a = a + pose.theta
-        return np.stack([pose.x + r * np.cos(a), pose.y + r * np.sin(a)], axis=1)
-    return np.stack([r * np.cos(a), r * np.sin(a)], axis=1)

@@ -13,7 +13,7 @@ Services    /hall_follower/reset      std_srvs/Trigger: forget the strategy (res
 Each scan is paired with the odometry message of the SAME stamp (the simulator publishes both
 at every sensor period), so the controller's inputs do not depend on delivery order; a scan
 whose stamp has no odometry is paired with the newest older odometry once a newer one arrives
-(`island_sim.core.stamps.ScanOdomPairer`).
+(`island_msgs_py.stamps.ScanOdomPairer`).
 """
 
 from __future__ import annotations
@@ -25,23 +25,21 @@ from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import TwistStamped
+from island_msgs_py.conversions import command_to_twist_stamped
 from island_msgs_py.qos import LATCHED, STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
+from island_msgs_py.scan_inputs import subscribe_paired_scans
+from island_msgs_py.stamps import Paired
 from island_msgs_py.types import FloatArray, Pose2D
 from rclpy.node import Node
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
-from island_sim.conversions import (
-    command_to_twist_stamped,
-)
 from island_sim.core.hall_follower import (
     HallFollower,
     HallFollowerConfig,
     HallFollowerError,
 )
-from island_sim.core.stamps import Paired
-from island_sim.scan_inputs import subscribe_paired_scans
 
 NODE_NAME = "hall_follower_node"
 

@@ -31,6 +31,12 @@ from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import TwistStamped
+from island_msgs_py.conversions import (
+    NS_PER_S,
+    ConversionError,
+    fill_odometry,
+    twist_stamped_to_command,
+)
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
 from island_msgs_py.types import Pose2D
@@ -38,12 +44,6 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
-from island_sim.conversions import (
-    NS_PER_S,
-    ConversionError,
-    fill_odometry,
-    twist_stamped_to_command,
-)
 from island_sim.core.robot import (
     CommandGate,
     OdometryConfig,
@@ -53,7 +53,7 @@ from island_sim.core.robot import (
     SimLoopConfig,
     SimRobot,
 )
-from island_sim.core.world import load_world
+from island_sim.core.world_loader import load_world
 
 NODE_NAME = "odometry_node"
 WARN_THROTTLE_S = 2.0

@@ -17,16 +17,17 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from island_msgs_py.conversions import ConversionError, arrays_to_scan, odometry_to_pose
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan, Range
 
-from island_sim.conversions import ConversionError, arrays_to_scan, odometry_to_pose, range_msg
+from island_sim.conversions import range_msg
 from island_sim.core.robot import SimLoopConfig
 from island_sim.core.sonar import SonarConfig, SonarModel
-from island_sim.core.world import load_world
+from island_sim.core.world_loader import load_world
 
 NODE_NAME = "sonar_node"
 

@@ -39,8 +39,9 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.geometry import clearance_m, ranges_to_points
 from island_msgs_py.types import FloatArray, Pose2D
-from island_sim.core.sonar import SonarConfig, SonarModel, ranges_to_points
+from island_sim.core.sonar import SonarConfig, SonarModel
 from island_sim.core.world import World
 from scipy.optimize import minimize
 from scipy.stats import rankdata, spearmanr
@@ -181,21 +182,8 @@ def free_points(
         return xs, ys, pts[:0], np.zeros((ys.shape[0], xs.shape[0]), dtype=bool)
     keep = inside_outline(world, pts)
     # Clearance from every wall.
-    keep &= _clearance(pts, world.segments) >= cfg.clearance_m
+    keep &= clearance_m(pts, world.segments) >= cfg.clearance_m
     return xs, ys, pts[keep], keep.reshape(ys.shape[0], xs.shape[0])
-
-
-def _clearance(pts: FloatArray, segs: FloatArray, chunk: int = 2048) -> FloatArray:
-    out = np.empty(pts.shape[0])
-    a = segs[None, :, 0:2]
-    d = segs[None, :, 2:4] - a
-    dd = np.sum(d * d, axis=2)
-    for s in range(0, pts.shape[0], chunk):
-        rel = pts[s : s + chunk, None, :] - a
-        t = np.clip(np.sum(rel * d, axis=2) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-        diff = rel - t[:, :, None] * d
-        out[s : s + chunk] = np.sqrt(np.min(np.sum(diff * diff, axis=2), axis=1))
-    return out
 
 
 def confidence_map(

@@ -5,8 +5,9 @@ stamps; DDS may deliver the odometry of the next period before this period's sca
 before its odometry. A controller that paired a scan with "the latest odometry" would decide on
 a pose that depends on arrival order. `ScanOdomPairer` holds scans until odometry of their stamp
 (or later) has arrived and pairs each with the pose of its stamp, or the newest older one when
-that stamp has none. Used by the hall follower and the island localizer nodes; the island
-builder, which must see every odometry message in order, has its own `StampSync`.
+that stamp has none. Used by the hall follower and the island localizer nodes (through
+`scan_inputs.subscribe_paired_scans`); the island builder, which must see every odometry message
+in order, still has its own `StampSync`. Pure Python (no ROS).
 """
 
 from __future__ import annotations

@@ -1,12 +1,12 @@
-"""Scan/odometry pairing by stamp (island_sim.core.stamps)."""
+"""Scan/odometry pairing by stamp (island_msgs_py.stamps)."""
 
 from __future__ import annotations
 
 import itertools
 
 import pytest
+from island_msgs_py.stamps import ScanOdomPairer, StampError
 from island_msgs_py.types import Pose2D
-from island_sim.core.stamps import ScanOdomPairer, StampError
 
 
 def _pose(t_ns: int) -> Pose2D:

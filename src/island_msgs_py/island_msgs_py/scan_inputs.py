@@ -1,6 +1,6 @@
 """/sonar/scan and /odom for a node that acts on each scan with the odometry of its stamp.
 
-The message side of `island_sim.core.stamps.ScanOdomPairer`, shared by the hall follower and the
+The message side of `island_msgs_py.stamps.ScanOdomPairer`, shared by the hall follower and the
 island localizer nodes: converts both topics, feeds the pairer and hands every released scan
 (stamp, (ranges, angles), pose) to the node; a bad message, or a scan that can never be paired,
 goes to the node's bad-message log instead.
@@ -10,14 +10,19 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from island_msgs_py.qos import STREAM_QOS
-from island_msgs_py.types import FloatArray
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 
-from island_sim.conversions import ConversionError, odometry_to_pose, scan_to_arrays, time_to_ns
-from island_sim.core.stamps import Paired, ScanOdomPairer
+from island_msgs_py.conversions import (
+    ConversionError,
+    odometry_to_pose,
+    scan_to_arrays,
+    time_to_ns,
+)
+from island_msgs_py.qos import STREAM_QOS
+from island_msgs_py.stamps import Paired, ScanOdomPairer
+from island_msgs_py.types import FloatArray
 
 ScanArrays = tuple[FloatArray, FloatArray]
 """(ranges [m], angles [rad]) of one scan."""
