@@ -1,0 +1,60 @@
+"""The global topological map M = {V, E} (paper eq. 1): model, planning, layout, formats, store.
+
+Public API (import from `island_mapping.core.graph`; the submodules are implementation):
+
+- model (`model.py`): `TopoGraph` (islands keyed by id, at most one directed edge per ordered
+  pair; every change validated first, `GraphError` naming the island/edge otherwise), `PutMode`;
+- errors (`errors.py`): `GraphError`, `NoRouteError`;
+- strategy algebra (`strategy.py`): `normalize_strategy`, `reverse_strategy`,
+  `strategy_displacement`;
+- planning (`planning.py`): `Route`, `Backend`, `SCIPY_MIN_ISLANDS`, `ROUTE_TREE_CACHE_SIZE`
+  (`TopoGraph.plan_route` is the entry point);
+- layout (`layout.py`): `display_layout` (`TopoGraph.display_layout`), for drawing only;
+- formats (`formats/`): `GraphFormat`, `GEOJSON_FORMAT`, `GRAPHML_FORMAT` (and `TopoGraph`'s
+  `to_/from_/save_/load_` json, geojson, graphml, `save_all`, `load_any`, `save_any`);
+- store (`store.py`): `GraphStore` (the graph persisted in a directory);
+- config (`config.py`): `GraphStoreConfig`, `GraphServerConfig`.
+
+No rclpy here (numpy, scipy, networkx and island_msgs_py's ROS-free modules only).
+"""
+
+from island_mapping.core.graph.config import GraphServerConfig, GraphStoreConfig
+from island_mapping.core.graph.errors import GraphError, NoRouteError
+from island_mapping.core.graph.formats import GEOJSON_FORMAT, GRAPHML_FORMAT, GraphFormat
+from island_mapping.core.graph.layout import display_layout
+from island_mapping.core.graph.model import PutMode, TopoGraph
+from island_mapping.core.graph.planning import (
+    ROUTE_TREE_CACHE_SIZE,
+    SCIPY_MIN_ISLANDS,
+    Backend,
+    Route,
+)
+from island_mapping.core.graph.store import GraphStore
+from island_mapping.core.graph.strategy import (
+    TURN_AROUND_DEG,
+    normalize_strategy,
+    reverse_strategy,
+    strategy_displacement,
+)
+
+__all__ = [
+    "GEOJSON_FORMAT",
+    "GRAPHML_FORMAT",
+    "ROUTE_TREE_CACHE_SIZE",
+    "SCIPY_MIN_ISLANDS",
+    "TURN_AROUND_DEG",
+    "Backend",
+    "GraphError",
+    "GraphFormat",
+    "GraphServerConfig",
+    "GraphStore",
+    "GraphStoreConfig",
+    "NoRouteError",
+    "PutMode",
+    "Route",
+    "TopoGraph",
+    "display_layout",
+    "normalize_strategy",
+    "reverse_strategy",
+    "strategy_displacement",
+]
