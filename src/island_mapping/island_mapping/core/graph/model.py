@@ -4,7 +4,9 @@ A node is an `Island` (its line model L in its own frame, the model type T that 
 directed edge is an `Edge` (the control strategy S from the source island's origin to the target
 island's origin, and the weight W [m] used for planning). There is at most one edge per ordered
 pair of islands. Every mutating method validates its request first and raises `GraphError`
-without changing anything when it is rejected.
+without changing anything when it is rejected. Islands' exits and the edges agree at all times
+(`exits.py`): an explored exit names an edge of the graph, an edge's source/target exit names an
+exit of its island, and removing an edge sets the exits it explored back to unexplored.
 """
 
 from __future__ import annotations
@@ -17,9 +19,9 @@ from typing import Any
 
 import networkx as nx
 from island_msgs_py.json_io import GraphFormatError
-from island_msgs_py.types import Edge, Island, Pose2D
+from island_msgs_py.types import Edge, ExitState, ExitUpdate, Island, Pose2D
 
-from island_mapping.core.graph import formats
+from island_mapping.core.graph import exits, formats
 from island_mapping.core.graph.errors import GraphError
 from island_mapping.core.graph.layout import DEFAULT_MARGIN_M, display_layout
 from island_mapping.core.graph.planning import Backend, Route, RoutePlanner
@@ -49,11 +51,16 @@ class TopoGraph:
 
     @classmethod
     def from_parts(cls, islands: Iterable[Island], edges: Iterable[Edge]) -> TopoGraph:
+        """A graph of these islands and edges, validated as a whole (an explored exit may name
+        an edge that comes later in `edges`)."""
         g = cls()
-        for island in islands:
-            g.add_island(island)
+        listed = list(islands)
+        for island in listed:
+            g._store_island(g._checked_island(island, PutMode.ADD, explored_edges=False))
         for edge in edges:
             g.add_edge(edge)
+        for island in listed:
+            exits.check_explored_edges(island, g.has_edge)
         return g
 
     def __len__(self) -> int:
@@ -124,6 +131,9 @@ class TopoGraph:
 
     def check_island(self, island: Island, mode: str = PutMode.PUT) -> Island:
         """Validate an 'add', 'replace' or either ('put'); returns the copy to store."""
+        return self._checked_island(island, mode, explored_edges=True)
+
+    def _checked_island(self, island: Island, mode: str, explored_edges: bool) -> Island:
         checked = checked_island(island)
         exists = checked.id in self._g
         if mode == PutMode.ADD and exists:
@@ -135,7 +145,15 @@ class TopoGraph:
             raise GraphError(
                 f"island {checked.id}: frame {checked.frame_id!r} already used by island {owner}"
             )
+        if explored_edges:
+            exits.check_explored_edges(checked, self.has_edge)
+        if exists:
+            exits.check_kept_exits(checked, self._touching(checked.id))
         return checked
+
+    def _touching(self, island_id: int) -> list[Edge]:
+        return [d["edge"] for _, _, d in self._g.in_edges(island_id, data=True)] + [
+            d["edge"] for _, _, d in self._g.out_edges(island_id, data=True)]
 
     def check_edge(self, edge: Edge, mode: str = PutMode.PUT) -> Edge:
         """Validate an edge add/replace/put request (ids known, no self-edge, finite weights)."""
@@ -149,7 +167,26 @@ class TopoGraph:
             raise GraphError(f"{name} already exists (use replace)")
         if mode == PutMode.REPLACE and not exists:
             raise GraphError(f"cannot replace unknown {name}")
+        exits.check_edge_exits(edge, self.get_island(edge.source), self.get_island(edge.target))
         return edge
+
+    def check_exit_update(self, update: ExitUpdate) -> Island:
+        """Validate a change of one exit's state; returns the island to store."""
+        if not isinstance(update, ExitUpdate):
+            raise GraphError(f"expected an ExitUpdate, got {type(update).__name__}")
+        if update.island not in self._g:
+            raise GraphError(f"exit update: unknown island {update.island}")
+        return exits.with_exit_update(self.get_island(update.island), update, self.has_edge)
+
+    def exits_reset_by(
+        self, removed: Iterable[tuple[int, int]], dropped: int | None = None
+    ) -> list[Island]:
+        """The islands whose exits a removal of the edges `removed` sets back to unexplored, as
+        they will be stored (not the island `dropped`, which goes too)."""
+        pairs = set(removed)
+        ids = sorted({i for pair in pairs for i in pair if i != dropped and i in self._g})
+        changed = [exits.reset_exits(self.get_island(i), pairs) for i in ids]
+        return [i for i in changed if i is not None]
 
     # --- changes -------------------------------------------------------------------------------
 
@@ -195,23 +232,47 @@ class TopoGraph:
         self._store_edge(edge)
         return replaced
 
+    def set_exit(
+        self,
+        island_id: int,
+        index: int,
+        state: ExitState,
+        edge: tuple[int, int] | None = None,
+    ) -> Island:
+        """Set exit `index` of island `island_id` to `state` (explored: by the edge
+        (source, target), which must exist and touch the island); returns the changed island."""
+        return self.apply_exit_update(ExitUpdate(island_id, index, state, edge))
+
+    def apply_exit_update(self, update: ExitUpdate) -> Island:
+        """`set_exit` from an ExitUpdate; returns the changed island."""
+        island = self.check_exit_update(update)
+        self._store_island(island)
+        return island
+
     def remove_island(self, island_id: int) -> list[Edge]:
-        """Remove an island and its edges; returns the removed edges."""
+        """Remove an island and its edges (exits they explored on other islands go back to
+        unexplored); returns the removed edges."""
         if island_id not in self._g:
             raise GraphError(f"cannot remove unknown island {island_id}")
-        removed = [d["edge"] for _, _, d in self._g.in_edges(island_id, data=True)]
-        removed += [d["edge"] for _, _, d in self._g.out_edges(island_id, data=True)]
+        removed = self._touching(island_id)
+        reset = self.exits_reset_by(((e.source, e.target) for e in removed), dropped=island_id)
         for e in removed:
             del self._weights[e.source, e.target]
         del self._frames[self._g.nodes[island_id]["island"].frame_id]
         self._g.remove_node(island_id)
+        for island in reset:
+            self._g.nodes[island.id]["island"] = island
         self._changed()
         return removed
 
     def remove_edge(self, source: int, target: int) -> Edge:
+        """Remove an edge (exits it explored go back to unexplored); returns it."""
         edge = self.get_edge(source, target)
+        reset = self.exits_reset_by([(source, target)])
         self._g.remove_edge(source, target)
         del self._weights[source, target]
+        for island in reset:
+            self._g.nodes[island.id]["island"] = island
         self._changed()
         return edge
 
@@ -277,7 +338,7 @@ class TopoGraph:
 
     @classmethod
     def load_geojson(cls, path: str | os.PathLike[str]) -> TopoGraph:
-        return cls._from_file_parts(formats.load_geojson(path), "features")
+        return cls._from_file_parts(formats.load_geojson(path), str(path))
 
     def to_graphml_graph(self) -> nx.DiGraph:
         """A DiGraph with only GraphML-representable attributes (strings and doubles)."""
@@ -297,8 +358,7 @@ class TopoGraph:
     @classmethod
     def load_any(cls, path: str | os.PathLike[str]) -> TopoGraph:
         """Load by extension: .json (graph document), .geojson, .graphml."""
-        where = "features" if formats.format_of(path) is formats.GraphFormat.GEOJSON else str(path)
-        return cls._from_file_parts(formats.load_any(path), where)
+        return cls._from_file_parts(formats.load_any(path), str(path))
 
     def save_any(self, path: str | os.PathLike[str]) -> Path:
         return formats.save_any(self, path)

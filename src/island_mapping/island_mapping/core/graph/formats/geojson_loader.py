@@ -4,12 +4,15 @@ edges are skipped: they were never driven). Errors name the feature and its GeoJ
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
+import re
 from collections.abc import Iterator, Mapping
 from typing import Any
 
 from island_msgs_py.json_io import GraphFormatError
-from island_msgs_py.types import Edge, Island
+from island_msgs_py.limits import MAX_EXITS_PER_ISLAND
+from island_msgs_py.types import Edge, Exit, Island, IslandTypeError
 
 from island_mapping.core.graph.formats.common import Parts, read_json_file
 from island_msgs_py import json_io
@@ -23,7 +26,9 @@ _NODE_KEYS = {
 _EDGE_KEYS = {
     "source": "startid", "target": "endid", "weight": "cost", "strategy": "metadata.strategy",
     "length_m": "metadata.length_m", "expected_error_m": "metadata.expected_error_m",
+    "source_exit": "metadata.source_exit", "target_exit": "metadata.target_exit",
 }
+_EXIT_KEY_RE = re.compile(r"^(0|[1-9][0-9]{0,9})$")  # an exit index written as an object key
 SEGMENT_COLUMNS = 4  # x1, y1, x2, y2 per segment in the flat `segments` list
 
 
@@ -47,6 +52,24 @@ def _geojson_paths(prefix: str, keys: Mapping[str, str]) -> Iterator[None]:
         raise GraphFormatError(p, exc.problem) from exc
 
 
+def _exits(value: Any, path: str) -> tuple[Exit, ...]:
+    """`metadata.exits`: an object keyed by exit index (see geojson_saver)."""
+    if not isinstance(value, Mapping):
+        raise GraphFormatError(path, "expected an object keyed by exit index")
+    if len(value) > MAX_EXITS_PER_ISLAND:
+        raise GraphFormatError(path, f"{len(value)} exits (the limit is {MAX_EXITS_PER_ISLAND})")
+    out = []
+    for key, item in value.items():
+        if not isinstance(key, str) or not _EXIT_KEY_RE.match(key):
+            raise GraphFormatError(f"{path}.{str(key)[:20]}", "an exit key must be its index")
+        if not isinstance(item, Mapping):
+            raise GraphFormatError(f"{path}.{key}", "expected an object")
+        if "index" in item:
+            raise GraphFormatError(f"{path}.{key}.index", "unknown key (the key is the index)")
+        out.append(json_io.exit_from_dict({**item, "index": int(key)}, f"{path}.{key}"))
+    return tuple(out)
+
+
 def _island(path: str, props: Mapping[str, Any], meta: Mapping[str, Any]) -> Island:
     num = meta.get("num_segments")
     flat = meta.get("segments")
@@ -56,8 +79,9 @@ def _island(path: str, props: Mapping[str, Any], meta: Mapping[str, Any]) -> Isl
             "expected a flat list of 4 * num_segments numbers",
         )
     rows = [flat[4 * j: 4 * j + 4] for j in range(num)]
+    exits = _exits(meta.get("exits", {}), f"{path}.properties.metadata.exits")
     with _geojson_paths(f"{path}.properties", _NODE_KEYS):
-        return json_io.island_from_dict({
+        island = json_io.island_from_dict({
             "id": props.get("id"),
             "frame_id": props.get("frame", ""),
             "model_type": meta.get("model_type"),
@@ -66,6 +90,10 @@ def _island(path: str, props: Mapping[str, Any], meta: Mapping[str, Any]) -> Isl
             "model": {"segments": rows},
             "origin_truth": meta.get("origin_truth"),
         }, f"{path}.properties")
+    try:
+        return dataclasses.replace(island, exits=exits)
+    except IslandTypeError as exc:
+        raise GraphFormatError(f"{path}.properties.metadata.exits", str(exc)) from exc
 
 
 def _edge(path: str, props: Mapping[str, Any], meta: Mapping[str, Any]) -> Edge:
@@ -77,6 +105,8 @@ def _edge(path: str, props: Mapping[str, Any], meta: Mapping[str, Any]) -> Edge:
             "weight": props.get("cost", 0.0),
             "length_m": meta.get("length_m", 0.0),
             "expected_error_m": meta.get("expected_error_m", 0.0),
+            "source_exit": meta.get("source_exit"),
+            "target_exit": meta.get("target_exit"),
         }, f"{path}.properties")
 
 
@@ -118,5 +148,10 @@ def geojson_to_parts(doc: Any) -> Parts:
 
 
 def load_geojson(path: str | os.PathLike[str]) -> Parts:
-    """Read a GeoJSON graph file (see `geojson_to_parts`)."""
-    return geojson_to_parts(read_json_file(path))
+    """Read a GeoJSON graph file (see `geojson_to_parts`); errors start with the file name."""
+    doc = read_json_file(path)
+    try:
+        return geojson_to_parts(doc)
+    except GraphFormatError as exc:
+        raise GraphFormatError(f"{path}: {exc.path}" if exc.path else str(path),
+                               exc.problem) from exc
