@@ -62,8 +62,7 @@ class TopoGraphServerNode(Node):
         storage = self.config.storage_path.strip()
         self.store: GraphStore | None = None
         if storage:
-            store_cfg = GraphStoreConfig(compact_every=self.config.compact_every)
-            self.store = GraphStore(os.path.expanduser(storage), store_cfg)
+            self.store = GraphStore(os.path.expanduser(storage), GraphStoreConfig())
             self.graph = self.store.graph
         else:
             self.graph = TopoGraph()

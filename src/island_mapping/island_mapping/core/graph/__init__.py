@@ -12,7 +12,11 @@ Public API (import from `island_mapping.core.graph`; the submodules are implemen
 - layout (`layout.py`): `display_layout` (`TopoGraph.display_layout`), for drawing only;
 - formats (`formats/`): `GraphFormat`, `GEOJSON_FORMAT`, `GRAPHML_FORMAT` (and `TopoGraph`'s
   `to_/from_/save_/load_` json, geojson, graphml, `save_all`, `load_any`, `save_any`);
-- store (`store.py`): `GraphStore` (the graph persisted in a directory);
+- exits (`exits.py`): `exit_state_counts` (`TopoGraph.set_exit`/`apply_exit_update` change one
+  exit; the graph keeps exits and edges consistent);
+- store (`store.py`): `GraphStore` (the graph persisted in a directory as SQLite),
+  `GraphStoreError` (not a store, damaged, newer schema), `salvage_store` and
+  `SalvageReport` (`store_salvage.py`: recovery of a damaged store);
 - config (`config.py`): `GraphStoreConfig`, `GraphServerConfig`.
 
 No rclpy here (numpy, scipy, networkx and island_msgs_py's ROS-free modules only).
@@ -20,6 +24,7 @@ No rclpy here (numpy, scipy, networkx and island_msgs_py's ROS-free modules only
 
 from island_mapping.core.graph.config import GraphServerConfig, GraphStoreConfig
 from island_mapping.core.graph.errors import GraphError, NoRouteError
+from island_mapping.core.graph.exits import exit_state_counts
 from island_mapping.core.graph.formats import GEOJSON_FORMAT, GRAPHML_FORMAT, GraphFormat
 from island_mapping.core.graph.layout import display_layout
 from island_mapping.core.graph.model import PutMode, TopoGraph
@@ -29,7 +34,8 @@ from island_mapping.core.graph.planning import (
     Backend,
     Route,
 )
-from island_mapping.core.graph.store import GraphStore
+from island_mapping.core.graph.store import GraphStore, GraphStoreError
+from island_mapping.core.graph.store_salvage import SalvageReport, salvage_store
 from island_mapping.core.graph.strategy import (
     TURN_AROUND_DEG,
     normalize_strategy,
@@ -49,12 +55,16 @@ __all__ = [
     "GraphServerConfig",
     "GraphStore",
     "GraphStoreConfig",
+    "GraphStoreError",
     "NoRouteError",
     "PutMode",
     "Route",
+    "SalvageReport",
     "TopoGraph",
     "display_layout",
+    "exit_state_counts",
     "normalize_strategy",
     "reverse_strategy",
+    "salvage_store",
     "strategy_displacement",
 ]

@@ -8,22 +8,19 @@ from dataclasses import dataclass, field
 
 @dataclass(frozen=True)
 class GraphStoreConfig:
-    """How the graph server persists accepted changes."""
+    """How the graph store writes and checks its database."""
 
-    compact_every: int = field(
-        default=200,
-        metadata={"help": "rewrite the snapshot and empty the change log after this many "
-                          "logged changes [changes]"},
-    )
     fsync: bool = field(
         default=True,
-        metadata={"help": "fsync the change log before acknowledging a change (needed to "
-                          "survive power loss; a SIGKILL is survived either way) [bool]"},
+        metadata={"help": "commit each change with synchronous=FULL (fsync of the write-ahead "
+                          "log before the acknowledgement: survives power loss); false = "
+                          "NORMAL (survives a killed process, not a power cut) [bool]"},
     )
-
-    def __post_init__(self) -> None:
-        if self.compact_every < 1:
-            raise ValueError(f"compact_every must be >= 1, got {self.compact_every}")
+    full_integrity_check: bool = field(
+        default=False,
+        metadata={"help": "check the database on open with PRAGMA integrity_check (every page "
+                          "and index) instead of quick_check [bool]"},
+    )
 
 
 @dataclass(frozen=True)
@@ -32,18 +29,15 @@ class GraphServerConfig:
 
     storage_path: str = field(
         default="~/.ros/islands/topo_graph",
-        metadata={"help": "directory holding the persisted graph (snapshot.json + changes.jsonl); "
-                          "reloaded on start; empty = in memory only [path]"},
+        metadata={"help": "directory holding the persisted graph (graph.sqlite3, created in a "
+                          "missing or empty directory); reloaded and checked on start; empty = "
+                          "in memory only [path]"},
     )
     output_dir: str = field(
         default="",
         metadata={"help": "where /topo_graph/save writes graph.json, graph.geojson, "
                           "graph.graphml; empty = <storage_path>/export, or ./topo_graph_export "
                           "when in memory [path]"},
-    )
-    compact_every: int = field(
-        default=200,
-        metadata={"help": "snapshot the graph and reset the change log every N changes [changes]"},
     )
     display_frame: str = field(
         default="islands_layout",
