@@ -39,6 +39,12 @@ class GraphServerConfig:
                           "graph.graphml; empty = <storage_path>/export, or ./topo_graph_export "
                           "when in memory [path]"},
     )
+    max_items_per_request: int = field(
+        default=256,
+        metadata={"help": "most items one /topo_graph/add request may carry; a longer request "
+                          "is refused whole (each item a durable write: the bound keeps one "
+                          "request from holding the server for long) [items]"},
+    )
     display_frame: str = field(
         default="islands_layout",
         metadata={"help": "frame of the display layout the markers are drawn in (no metric "
@@ -49,3 +55,8 @@ class GraphServerConfig:
         metadata={"help": "draw each island's model in its own frame island_<id> (needs TF from "
                           "elsewhere) instead of placing it in display_frame [bool]"},
     )
+
+    def __post_init__(self) -> None:
+        if self.max_items_per_request < 1:
+            raise ValueError(
+                f"max_items_per_request must be >= 1, got {self.max_items_per_request}")
