@@ -167,7 +167,9 @@ class TopoGraph:
             raise GraphError(f"{name} already exists (use replace)")
         if mode == PutMode.REPLACE and not exists:
             raise GraphError(f"cannot replace unknown {name}")
-        exits.check_edge_exits(edge, self.get_island(edge.source), self.get_island(edge.target))
+        if edge.source_exit is not None or edge.target_exit is not None:
+            exits.check_edge_exits(edge, self.get_island(edge.source),
+                                   self.get_island(edge.target))
         return edge
 
     def check_exit_update(self, update: ExitUpdate) -> Island:

@@ -12,6 +12,7 @@ import math
 import numpy as np
 from island_msgs_py.limits import (
     MAX_COORD_M,
+    MAX_EXIT_INDEX,
     MAX_FRAME_ID_CHARS,
     MAX_ISLAND_ID,
     MAX_LENGTH_M,
@@ -35,10 +36,12 @@ def _checked_segments(island: Island) -> np.ndarray:
     if len(segs) > MAX_SEGMENTS_PER_ISLAND:
         raise GraphError(f"island {island.id}: {len(segs)} segments (the limit is "
                          f"{MAX_SEGMENTS_PER_ISLAND})")
-    if not np.all(np.isfinite(segs)):
-        bad = int(np.argwhere(~np.isfinite(segs))[0][0])
-        raise GraphError(f"island {island.id}: segment {bad} has a NaN or infinite coordinate")
-    if segs.size and float(np.abs(segs).max()) > MAX_COORD_M:
+    if segs.size and not float(np.abs(segs).max()) <= MAX_COORD_M:  # NaN fails this too
+        finite = np.isfinite(segs)
+        if not finite.all():
+            bad = int(np.argwhere(~finite)[0][0])
+            raise GraphError(f"island {island.id}: segment {bad} has a NaN or infinite "
+                             "coordinate")
         bad = int(np.argwhere(np.abs(segs) > MAX_COORD_M)[0][0])
         raise GraphError(f"island {island.id}: segment {bad} has a coordinate beyond "
                          f"{MAX_COORD_M:g} m (the limit)")
@@ -90,22 +93,22 @@ def checked_edge_fields(edge: Edge) -> Edge:
     if not isinstance(edge, Edge):
         raise GraphError(f"expected an Edge, got {type(edge).__name__}")
     name = f"edge {edge.source}->{edge.target}"
-    for end in ("source", "target"):
-        v = getattr(edge, end)
+    for end, v in (("source", edge.source), ("target", edge.target)):
         if not _is_int(v) or not 0 <= v <= MAX_ISLAND_ID:
             raise GraphError(f"{name}: {end} must be an island id in [0, {MAX_ISLAND_ID}]")
     if edge.source == edge.target:
         raise GraphError(f"{name}: an edge from an island to itself")
-    for attr in ("weight", "length_m", "expected_error_m"):
-        v = float(getattr(edge, attr))
-        if not math.isfinite(v) or v < 0:
-            raise GraphError(f"{name}: {attr} must be finite and >= 0, got {v}")
-        if v > MAX_LENGTH_M:
+    for attr, v in (("weight", edge.weight), ("length_m", edge.length_m),
+                    ("expected_error_m", edge.expected_error_m)):
+        if not 0.0 <= v <= MAX_LENGTH_M:  # NaN fails this too
+            if not math.isfinite(v) or v < 0:
+                raise GraphError(f"{name}: {attr} must be finite and >= 0, got {float(v)}")
             raise GraphError(f"{name}: {attr} is {v:g} m, beyond {MAX_LENGTH_M:g} m (the limit)")
     if len(edge.strategy.steps) > MAX_STRATEGY_STEPS:
         raise GraphError(f"{name}: {len(edge.strategy.steps)} strategy steps (the limit is "
                          f"{MAX_STRATEGY_STEPS})")
-    try:  # the constructor checks the exit indices again
-        return dataclasses.replace(edge)
-    except IslandTypeError as exc:
-        raise GraphError(str(exc)) from exc
+    for end, x in (("source_exit", edge.source_exit), ("target_exit", edge.target_exit)):
+        if x is not None and (not _is_int(x) or not 0 <= x <= MAX_EXIT_INDEX):
+            raise GraphError(f"{name}: {end} must be an exit index in [0, {MAX_EXIT_INDEX}] "
+                             f"or None, got {x!r}")
+    return edge
