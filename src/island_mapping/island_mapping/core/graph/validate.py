@@ -98,12 +98,12 @@ def checked_edge_fields(edge: Edge) -> Edge:
             raise GraphError(f"{name}: {end} must be an island id in [0, {MAX_ISLAND_ID}]")
     if edge.source == edge.target:
         raise GraphError(f"{name}: an edge from an island to itself")
-    for attr, v in (("weight", edge.weight), ("length_m", edge.length_m),
+    for attr, w in (("weight", edge.weight), ("length_m", edge.length_m),
                     ("expected_error_m", edge.expected_error_m)):
-        if not 0.0 <= v <= MAX_LENGTH_M:  # NaN fails this too
-            if not math.isfinite(v) or v < 0:
-                raise GraphError(f"{name}: {attr} must be finite and >= 0, got {float(v)}")
-            raise GraphError(f"{name}: {attr} is {v:g} m, beyond {MAX_LENGTH_M:g} m (the limit)")
+        if not 0.0 <= w <= MAX_LENGTH_M:  # NaN fails this too
+            if not math.isfinite(w) or w < 0:
+                raise GraphError(f"{name}: {attr} must be finite and >= 0, got {float(w)}")
+            raise GraphError(f"{name}: {attr} is {w:g} m, beyond {MAX_LENGTH_M:g} m (the limit)")
     if len(edge.strategy.steps) > MAX_STRATEGY_STEPS:
         raise GraphError(f"{name}: {len(edge.strategy.steps)} strategy steps (the limit is "
                          f"{MAX_STRATEGY_STEPS})")
