@@ -13,6 +13,9 @@ Graph document (format "islands-graph", version 2; version 1, without exits, is 
                 "weight": 8.1, "length_m": 7.77, "expected_error_m": 0.33,
                 "source_exit": null | 0, "target_exit": null | 2}, ...]}
 
+`exits`, `source_exit` and `target_exit` are optional and written only when set, so a map
+without exits reads and writes as in version 1 (but for the version number).
+
 An exit change (an item of the graph server's `/topo_graph/add`)::
 
     {"island": 3, "exit": 1, "state": "explored", "edge": [3, 5]}
@@ -195,7 +198,9 @@ def _exits_from_json(value: Any, path: str, island_id: int) -> tuple[Exit, ...]:
 
 
 def island_to_dict(island: Island) -> dict[str, Any]:
-    return {
+    """The island's JSON object; `exits` only when it has some (an island without exits is
+    written as version 1 wrote it, so recorded streams of islands compare equal)."""
+    d = {
         "id": island.id,
         "frame_id": island.frame_id,
         "model_type": island.model_type.value,
@@ -203,8 +208,10 @@ def island_to_dict(island: Island) -> dict[str, Any]:
         "built_at_s": island.built_at_s,
         "model": {"segments": island.model.segments.tolist()},
         "origin_truth": None if island.origin_truth is None else pose_to_dict(island.origin_truth),
-        "exits": [exit_to_dict(e) for e in island.exits],
     }
+    if island.exits:
+        d["exits"] = [exit_to_dict(e) for e in island.exits]
+    return d
 
 
 def _model_type(value: Any, path: str) -> ModelType:
@@ -247,16 +254,19 @@ def island_from_dict(d: Any, path: str = "island", version: int = FORMAT_VERSION
 
 
 def edge_to_dict(edge: Edge) -> dict[str, Any]:
-    return {
+    """The edge's JSON object; `source_exit`/`target_exit` only when known."""
+    d: dict[str, Any] = {
         "source": edge.source,
         "target": edge.target,
         "strategy": str(edge.strategy),
         "weight": edge.weight,
         "length_m": edge.length_m,
         "expected_error_m": edge.expected_error_m,
-        "source_exit": edge.source_exit,
-        "target_exit": edge.target_exit,
     }
+    for end in ("source_exit", "target_exit"):
+        if getattr(edge, end) is not None:
+            d[end] = getattr(edge, end)
+    return d
 
 
 def _exit_index(value: Any, path: str) -> int | None:
