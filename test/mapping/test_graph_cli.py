@@ -31,6 +31,7 @@ def test_info_convert_plan_strategies(tmp_path: Path, capsys: pytest.CaptureFixt
     assert info["islands"] == 4 and info["edges"] == 2
     assert info["weakly_connected_components"] == 2
     assert info["model_types"] == {"fisher": 1, "line": 3}
+    assert info["exits"] == {"unexplored": 0, "explored": 0, "blocked": 0}
     for ext in ("geojson", "graphml"):
         assert main(["graph", "convert", str(src), str(tmp_path / f"g.{ext}")]) == 0
         assert TopoGraph.load_any(tmp_path / f"g.{ext}") == g

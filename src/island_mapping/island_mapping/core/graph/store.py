@@ -30,7 +30,7 @@ from enum import StrEnum
 from pathlib import Path
 
 from island_msgs_py.json_io import GraphFormatError, fsync_dir
-from island_msgs_py.types import Edge, ExitState, ExitUpdate, Island
+from island_msgs_py.types import Edge, Exit, ExitState, ExitUpdate, Island
 
 from island_mapping.core.graph import store_schema as sch
 from island_mapping.core.graph.config import GraphStoreConfig
@@ -128,7 +128,7 @@ def read_rows(conn: sqlite3.Connection) -> tuple[list[Island], list[Edge]]:
     RowError naming the first row that is not valid."""
     conn.execute("BEGIN")
     try:
-        exits: dict[int, list] = {}
+        exits: dict[int, list[Exit]] = {}
         for row in conn.execute(sch.SELECT_EXITS):
             island_id, e = sch.exit_from_row(row)
             exits.setdefault(island_id, []).append(e)
