@@ -14,6 +14,12 @@ Times are printed beside Nav2 Route Server's published C++ numbers (0.23 ms at 1
 3.75 ms at 90,000 nodes) as ratios (ours / Nav2; > 1 means slower). Memory per island is the
 tracemalloc peak of building a graph of islands with an empty model, and with 20 segments.
 
+Persistence, the SQLite GraphStore beside the JSONL store it replaced (bench/
+baseline_jsonl_store.py, kept verbatim) in one run: median ms per acknowledged change (put_island
++ put_edge, each durable before it returns) over 500 islands of 20 segments, and ms to reopen
+that store and a 10,000-island one (the SQLite store checks its pages, row checksums and the
+graph on open).
+
 Usage: python bench/bench_route_planning.py [--sizes 1000,10000,90000,100000] [--queries 30]
 """
 
@@ -24,9 +30,15 @@ import statistics
 import tempfile
 import time
 import tracemalloc
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
 import numpy as np
+from baseline_jsonl_store import JsonlGraphStore
 from island_mapping.core.graph import GraphStore, TopoGraph
+from island_mapping.core.graph.store import write_new_database
+from island_mapping.core.graph.store_schema import DATABASE
 from island_msgs_py.types import ControlStrategy, Edge, Island, LineModel, ModelType
 
 NAV2_MS = {10_000: 0.23, 90_000: 3.75}  # Nav2 Route Server docs (C++), per route query
@@ -96,24 +108,68 @@ def memory_per_island(n: int, segments: int, seed: int) -> float:
     return peak / n
 
 
-def persistence_ms(n: int, seed: int) -> tuple[float, float]:
-    """(median ms per acknowledged put_island+put_edge with fsync, ms to reload) for n islands."""
+def persistence_ms(
+    n: int, seed: int, open_store: Callable[[str], Any], read: Callable[[str], TopoGraph]
+) -> tuple[float, float]:
+    """(median ms per acknowledged put_island + put_edge, ms to reload) for n islands."""
     rng = np.random.default_rng(seed)
     model = LineModel(rng.uniform(-3, 3, size=(20, 4)))
     strategy = ControlStrategy.parse("Go 125, Rot 270, Go 652")
     per_change = []
     with tempfile.TemporaryDirectory() as d:
-        with GraphStore(d) as store:
-            for i in range(n):
-                t0 = time.perf_counter()
-                store.put_island(Island(i, model, ModelType.LINE, 1.0, float(i)))
-                if i:
-                    store.put_edge(Edge(i - 1, i, strategy, 8.0))
-                per_change.append((time.perf_counter() - t0) * 1e3 / (2 if i else 1))
+        store = open_store(d)
+        for i in range(n):
+            t0 = time.perf_counter()
+            store.put_island(Island(i, model, ModelType.LINE, 1.0, float(i)))
+            if i:
+                store.put_edge(Edge(i - 1, i, strategy, 8.0))
+            per_change.append((time.perf_counter() - t0) * 1e3 / (2 if i else 1))
+        store.close()
         t0 = time.perf_counter()
-        assert len(GraphStore.read(d)) == n
+        assert len(read(d)) == n
         reload_ms = (time.perf_counter() - t0) * 1e3
     return statistics.median(per_change), reload_ms
+
+
+def reload_big_ms(n: int, seed: int) -> tuple[float, float]:
+    """ms to reopen an n-island store (20 segments each, a chain of edges): (SQLite, JSONL)."""
+    rng = np.random.default_rng(seed)
+    model = LineModel(rng.uniform(-3, 3, size=(20, 4)))
+    strategy = ControlStrategy.parse("Go 125, Rot 270, Go 652")
+    g = TopoGraph.from_parts(
+        [Island(i, model, ModelType.LINE, 1.0, float(i)) for i in range(n)],
+        [Edge(i - 1, i, strategy, 8.0) for i in range(1, n)])
+    out = []
+    with tempfile.TemporaryDirectory() as d:
+        write_new_database(Path(d) / DATABASE, g, {})
+        t0 = time.perf_counter()
+        assert len(GraphStore.read(d)) == n
+        out.append((time.perf_counter() - t0) * 1e3)
+    with tempfile.TemporaryDirectory() as d:
+        old = JsonlGraphStore(d)
+        old.graph = g
+        old.compact()
+        old.close()
+        t0 = time.perf_counter()
+        assert len(JsonlGraphStore.read(d)) == n
+        out.append((time.perf_counter() - t0) * 1e3)
+    return out[0], out[1]
+
+
+def report_persistence(seed: int) -> None:
+    n = 500
+    stores: list[tuple[str, Callable[[str], Any], Callable[[str], TopoGraph]]] = [
+        ("SQLite GraphStore", GraphStore, GraphStore.read),
+        ("JSONL store (before)", JsonlGraphStore, JsonlGraphStore.read),
+    ]
+    for name, open_store, read in stores:
+        change_ms, reload_ms = persistence_ms(n, seed, open_store, read)
+        print(f"{name:>22}, {n} islands of 20 segments + edges: {change_ms:.2f} ms per "
+              f"acknowledged change, reload {reload_ms:.0f} ms")
+    big = 10_000
+    sqlite_ms, jsonl_ms = reload_big_ms(big, seed)
+    print(f"reload of a {big}-island store: SQLite {sqlite_ms:.0f} ms, JSONL {jsonl_ms:.0f} ms "
+          f"(ratio {sqlite_ms / jsonl_ms:.2f})")
 
 
 def main() -> int:
@@ -121,7 +177,11 @@ def main() -> int:
     ap.add_argument("--sizes", default="1000,10000,90000,100000")
     ap.add_argument("--queries", type=int, default=30)
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--store-only", action="store_true", help="only the persistence figures")
     args = ap.parse_args()
+    if args.store_only:
+        report_persistence(args.seed)
+        return 0
     sizes = [int(s) for s in args.sizes.split(",")]
     print(f"{'islands':>8} {'edges':>7} {'backend':>18} {'median ms':>10} {'p95 ms':>8} "
           f"{'Nav2 ms':>8} {'ratio':>7}")
@@ -158,10 +218,7 @@ def main() -> int:
         b = memory_per_island(n, segs, args.seed)
         print(f"memory per island ({segs:2d}-segment model, {n} islands, ~3.4 edges out each): "
               f"{b / 1024:.2f} KiB (tracemalloc peak / islands)")
-    n = 500
-    change_ms, reload_ms = persistence_ms(n, args.seed)
-    print(f"GraphStore, {n} islands of 20 segments + edges: {change_ms:.2f} ms per acknowledged "
-          f"change (append + fsync; compaction every 200 included), reload {reload_ms:.0f} ms")
+    report_persistence(args.seed)
     return 0
 
 

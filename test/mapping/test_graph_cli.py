@@ -31,6 +31,7 @@ def test_info_convert_plan_strategies(tmp_path: Path, capsys: pytest.CaptureFixt
     assert info["islands"] == 4 and info["edges"] == 2
     assert info["weakly_connected_components"] == 2
     assert info["model_types"] == {"fisher": 1, "line": 3}
+    assert info["exits"] == {"unexplored": 0, "explored": 0, "blocked": 0}
     for ext in ("geojson", "graphml"):
         assert main(["graph", "convert", str(src), str(tmp_path / f"g.{ext}")]) == 0
         assert TopoGraph.load_any(tmp_path / f"g.{ext}") == g
@@ -75,3 +76,34 @@ def test_bad_input_exits_2_with_a_clear_message(
     assert main([a.format(d=tmp_path) for a in argv]) == 2
     err = capsys.readouterr().err
     assert err.startswith("islands graph: error:") and message in err
+
+
+def test_a_directory_that_is_not_a_store_is_an_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["graph", "info", "/etc"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("islands graph: error: /etc: not a graph store")
+    assert main(["graph", "info", str(tmp_path)]) == 2  # an empty directory is no store either
+    assert "not a graph store" in capsys.readouterr().err
+
+
+def test_salvage_of_a_damaged_store(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import sqlite3
+
+    with GraphStore(tmp_path / "store") as store:
+        for i in _graph().islands():
+            store.put_island(i)
+    conn = sqlite3.connect(tmp_path / "store" / "graph.sqlite3")
+    conn.execute("UPDATE islands SET r = 0.25 WHERE id = 1")  # changed outside the store
+    conn.commit()
+    conn.close()
+    assert main(["graph", "info", str(tmp_path / "store")]) == 2
+    err = capsys.readouterr().err
+    assert "damaged store" in err and "checksum mismatch" in err and "salvage" in err
+    assert main(["graph", "salvage", str(tmp_path / "store"), "--out", str(tmp_path / "new")]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["islands"] == 3 and len(report["lost"]) == 1
+    assert main(["graph", "info", str(tmp_path / "new")]) == 0
+    assert json.loads(capsys.readouterr().out)["islands"] == 3
+    assert main(["graph", "salvage", str(tmp_path / "nothing"), "--out", str(tmp_path / "x")]) == 2

@@ -50,7 +50,7 @@ def test_graph_round_trip_is_exact() -> None:
     # exact float round trip (repr), e.g. 1/3
     assert islands[1].r == 1.0 / 3.0
     doc = json.loads(text)
-    assert doc["format"] == "islands-graph" and doc["version"] == 1
+    assert doc["format"] == "islands-graph" and doc["version"] == 2
     assert doc["edges"][0]["strategy"] == "Go 125, Rot 270, Go 652"
 
 
@@ -101,7 +101,7 @@ _S1 = ["islands", 1, "model", "segments"]
         (["edges", 2, "target"], 1, None),  # 4->1 is new and valid
         (["edges", 0, "strategy"], "Go 1, Fly 3", "edges[0].strategy: control strategy"),
         (["edges", 0, "strategy"], "Rot 400", "edges[0].strategy: Rot angle must be in [0, 360)"),
-        (["version"], 2, "version: unsupported version 2"),
+        (["version"], 3, "version: unsupported version 3"),
         (["format"], "other", "format: expected 'islands-graph'"),
         (["islands"], {}, "islands: expected a list"),
     ],

@@ -3,7 +3,8 @@
 - Pose2D <-> geometry_msgs Pose / PoseStamped / PoseWithCovarianceStamped (yaw as a quaternion
   about z; the 3x3 (x, y, theta) covariance sits at rows/cols 0, 1, 5 of the 6x6 one).
 - The graph -> visualization_msgs/MarkerArray: per island a LINE_LIST of its model and a TEXT
-  label, per edge an ARROW from source to target with its control strategy as TEXT. Islands
+  label, per exit a short ARROW from the island origin coloured by the exit's state, per edge an
+  ARROW from source to target with its control strategy as TEXT. Islands
   share no metric frame, so a *display layout* (a Pose2D per island, e.g. from
   `TopoGraph.display_layout()`, or the simulator's truth when known) places them for viewing
   only. By default everything is drawn in one display frame (RViz fixed frame
@@ -11,8 +12,9 @@
   `in_island_frames=True` each island's model and label are stamped in its own frame
   `island_<id>` with an identity pose (for setups that provide TF for those frames).
 - The graph <-> std_msgs/String holding the versioned JSON document (island_msgs_py.json_io).
-- Islands/edges <-> rcl_interfaces/Parameter items of the graph server's `/topo_graph/add`
-  (a SetParameters request: name `island` or `edge`, a JSON string value).
+- Islands/edges/exit updates <-> rcl_interfaces/Parameter items of the graph server's
+  `/topo_graph/add` (a SetParameters request: name `island`, `edge` or `exit`, a JSON string
+  value).
 - A planned route -> nav_msgs/Path of the island origins (identity pose in each island frame).
 - Sensor and drive messages <-> arrays, for every node that reads or drives a robot:
   builtin_interfaces/Time <-> integer nanoseconds (exact stamp pairing), sensor_msgs/LaserScan
@@ -46,11 +48,21 @@ from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
 
 from island_msgs_py import json_io
-from island_msgs_py.types import Edge, FloatArray, Island, IslandTypeError, Pose2D
+from island_msgs_py.types import (
+    Edge,
+    ExitState,
+    ExitUpdate,
+    FloatArray,
+    Island,
+    IslandTypeError,
+    Pose2D,
+)
 
 DISPLAY_FRAME = "islands_layout"  # display-only frame of the marker layout
 ISLAND_PARAM = "island"
 EDGE_PARAM = "edge"
+EXIT_PARAM = "exit"
+ITEM_PARAMS = (ISLAND_PARAM, EDGE_PARAM, EXIT_PARAM)
 NS_PER_S = 1_000_000_000
 _COV_INDEX = (0, 1, 5)  # x, y, yaw rows/cols of ROS's 6x6 pose covariance
 _COV_ROWS, _COV_COLS = np.ix_(_COV_INDEX, _COV_INDEX)
@@ -62,6 +74,12 @@ _GRID_SPACING_M = 15.0  # fallback layout spacing when nothing better is known
 _MODEL_COLOUR = ColorRGBA(r=0.1, g=0.45, b=0.9, a=1.0)
 _EDGE_COLOUR = ColorRGBA(r=0.9, g=0.5, b=0.1, a=0.9)
 _TEXT_COLOUR = ColorRGBA(r=0.1, g=0.1, b=0.1, a=1.0)
+EXIT_ARROW_M = 1.0  # length of an exit's arrow from the island origin [m]
+EXIT_COLOURS = {  # an exit's arrow by its state: still to explore, done, not worth it
+    ExitState.UNEXPLORED: ColorRGBA(r=0.95, g=0.75, b=0.0, a=1.0),
+    ExitState.EXPLORED: ColorRGBA(r=0.15, g=0.7, b=0.2, a=1.0),
+    ExitState.BLOCKED: ColorRGBA(r=0.85, g=0.1, b=0.1, a=1.0),
+}
 
 
 class ConversionError(ValueError):
@@ -151,17 +169,25 @@ def edge_to_parameter(edge: Edge) -> Parameter:
         type=ParameterType.PARAMETER_STRING, string_value=json_io.edge_to_json(edge)))
 
 
-def parameter_to_item(param: Parameter, path: str = "parameter") -> Island | Edge:
+def exit_update_to_parameter(update: ExitUpdate) -> Parameter:
+    return Parameter(name=EXIT_PARAM, value=ParameterValue(
+        type=ParameterType.PARAMETER_STRING, string_value=json_io.exit_update_to_json(update)))
+
+
+def parameter_to_item(param: Parameter, path: str = "parameter") -> Island | Edge | ExitUpdate:
     """Decode one `/topo_graph/add` item; raises json_io.GraphFormatError when malformed."""
-    if param.name not in (ISLAND_PARAM, EDGE_PARAM):
+    if param.name not in ITEM_PARAMS:
         raise json_io.GraphFormatError(
-            f"{path}.name", f"expected {ISLAND_PARAM!r} or {EDGE_PARAM!r}, got {param.name!r}")
+            f"{path}.name", f"expected {ISLAND_PARAM!r} or {EDGE_PARAM!r} or {EXIT_PARAM!r}, "
+            f"got {param.name[:40]!r}")
     if param.value.type != ParameterType.PARAMETER_STRING:
         raise json_io.GraphFormatError(
             f"{path}.value", f"expected a string (type {ParameterType.PARAMETER_STRING}) holding "
             f"JSON, got parameter type {param.value.type}")
     if param.name == ISLAND_PARAM:
         return json_io.island_from_json(param.value.string_value, param.name)
+    if param.name == EXIT_PARAM:
+        return json_io.exit_update_from_json(param.value.string_value, param.name)
     return json_io.edge_from_json(param.value.string_value, param.name)
 
 
@@ -199,6 +225,55 @@ def _marker(header: Header, ns: str, mid: int, mtype: int, pose: Pose2D) -> Mark
     return m
 
 
+def _island_markers(
+    i: Island, header: Header, pose: Pose2D
+) -> list[Marker]:
+    """The model (LINE_LIST) and the label (TEXT) of one island."""
+    m = _marker(header, "island_models", i.id, Marker.LINE_LIST, pose)
+    m.scale.x = _LINE_WIDTH_M
+    m.color = _MODEL_COLOUR
+    ends = i.model.segments.reshape(-1, 2)
+    m.points = [Point(x=float(x), y=float(y), z=0.0) for x, y in ends]
+    t = _marker(header, "island_labels", i.id, Marker.TEXT_VIEW_FACING, pose)
+    t.pose.position.z = 0.5
+    t.scale.z = _TEXT_HEIGHT_M
+    t.color = _TEXT_COLOUR
+    t.text = f"{i.frame_id} ({i.model_type.value}, R={i.r:.2f})"
+    return [m, t]
+
+
+def _exit_markers(i: Island, header: Header, pose: Pose2D, first_id: int) -> list[Marker]:
+    """Per exit an ARROW of EXIT_ARROW_M from the island origin along its heading, coloured by
+    its state (ids first_id, first_id + 1, ...; namespace `exits`)."""
+    out = []
+    for k, e in enumerate(i.exits):
+        m = _marker(header, "exits", first_id + k, Marker.ARROW, pose)
+        tip = (EXIT_ARROW_M * math.cos(e.heading_rad), EXIT_ARROW_M * math.sin(e.heading_rad))
+        m.points = [Point(x=0.0, y=0.0, z=0.05), Point(x=tip[0], y=tip[1], z=0.05)]
+        m.scale.x, m.scale.y, m.scale.z = 0.06, 0.18, 0.25  # shaft, head diameter, head length
+        m.color = EXIT_COLOURS[e.state]
+        out.append(m)
+    return out
+
+
+def _edge_markers(k: int, e: Edge, a: Pose2D, b: Pose2D, display: Header) -> list[Marker]:
+    """The ARROW source -> target and its strategy (TEXT) of edge number k."""
+    m = Marker(header=display, ns="edges", id=k, type=Marker.ARROW, action=Marker.ADD)
+    m.pose.orientation.w = 1.0
+    m.points = [Point(x=a.x, y=a.y, z=0.0), Point(x=b.x, y=b.y, z=0.0)]
+    m.scale.x, m.scale.y, m.scale.z = 0.1, 0.3, 0.4  # shaft, head diameter, head length [m]
+    m.color = _EDGE_COLOUR
+    t = Marker(header=display, ns="edge_labels", id=k, type=Marker.TEXT_VIEW_FACING,
+               action=Marker.ADD)
+    t.pose = pose2d_to_pose(Pose2D((a.x + b.x) / 2, (a.y + b.y) / 2, 0.0))
+    t.pose.position.z = 0.3
+    t.scale.z = _TEXT_HEIGHT_M * 0.8
+    t.color = _EDGE_COLOUR
+    t.text = f"{e.source}->{e.target}: {e.strategy}" if e.strategy.steps else \
+        f"{e.source}->{e.target}"
+    return [m, t]
+
+
 def graph_to_marker_array(
     islands: Iterable[Island],
     edges: Iterable[Edge],
@@ -210,7 +285,9 @@ def graph_to_marker_array(
     """Markers for viewers; the first one is DELETEALL so removed islands disappear.
 
     Namespaces: `island_models` (LINE_LIST, id = island id), `island_labels` (TEXT),
-    `edges` (ARROW source -> target in the display frame), `edge_labels` (TEXT: strategy).
+    `exits` (ARROW from the island origin along the exit's heading, coloured by its state:
+    EXIT_COLOURS), `edges` (ARROW source -> target in the display frame), `edge_labels`
+    (TEXT: strategy).
     """
     isl = sorted(islands, key=lambda i: i.id)
     lay = dict(layout) if layout is not None else grid_layout(isl)
@@ -221,42 +298,19 @@ def graph_to_marker_array(
     display = Header(frame_id=display_frame, stamp=st)
     out = [Marker(header=display, ns="", id=0, action=Marker.DELETEALL)]
     identity = Pose2D(0.0, 0.0, 0.0)
+    exit_markers: list[Marker] = []
     for i in isl:
         if in_island_frames:
             header, pose = Header(frame_id=i.frame_id, stamp=st), identity
         else:
             header, pose = display, lay[i.id]
-        m = _marker(header, "island_models", i.id, Marker.LINE_LIST, pose)
-        m.scale.x = _LINE_WIDTH_M
-        m.color = _MODEL_COLOUR
-        ends = i.model.segments.reshape(-1, 2)
-        m.points = [Point(x=float(x), y=float(y), z=0.0) for x, y in ends]
-        out.append(m)
-        t = _marker(header, "island_labels", i.id, Marker.TEXT_VIEW_FACING, pose)
-        t.pose.position.z = 0.5
-        t.scale.z = _TEXT_HEIGHT_M
-        t.color = _TEXT_COLOUR
-        t.text = f"{i.frame_id} ({i.model_type.value}, R={i.r:.2f})"
-        out.append(t)
+        out += _island_markers(i, header, pose)
+        exit_markers += _exit_markers(i, header, pose, len(exit_markers))
+    out += exit_markers
     for k, e in enumerate(sorted(edges, key=lambda e: (e.source, e.target))):
         if e.source not in lay or e.target not in lay:
             raise IslandTypeError(f"edge {e.source}->{e.target}: island missing from the layout")
-        a, b = lay[e.source], lay[e.target]
-        m = Marker(header=display, ns="edges", id=k, type=Marker.ARROW, action=Marker.ADD)
-        m.pose.orientation.w = 1.0
-        m.points = [Point(x=a.x, y=a.y, z=0.0), Point(x=b.x, y=b.y, z=0.0)]
-        m.scale.x, m.scale.y, m.scale.z = 0.1, 0.3, 0.4  # shaft, head diameter, head length [m]
-        m.color = _EDGE_COLOUR
-        out.append(m)
-        t = Marker(header=display, ns="edge_labels", id=k, type=Marker.TEXT_VIEW_FACING,
-                   action=Marker.ADD)
-        t.pose = pose2d_to_pose(Pose2D((a.x + b.x) / 2, (a.y + b.y) / 2, 0.0))
-        t.pose.position.z = 0.3
-        t.scale.z = _TEXT_HEIGHT_M * 0.8
-        t.color = _EDGE_COLOUR
-        t.text = f"{e.source}->{e.target}: {e.strategy}" if e.strategy.steps else \
-            f"{e.source}->{e.target}"
-        out.append(t)
+        out += _edge_markers(k, e, lay[e.source], lay[e.target], display)
     return MarkerArray(markers=out)
 
 

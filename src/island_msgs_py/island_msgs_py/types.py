@@ -5,6 +5,10 @@ line-segment model L in its own frame and the model type T that accepted it; an 
 control strategy S that drives the robot from the source island's origin to the target island's
 origin, and a weight W.
 
+An island also records its *exits*: the directions in its own frame in which free space leads
+away from it, each `unexplored`, `explored` (by which edge) or `blocked`; an edge may say by which
+exit it leaves its source and enters its target.
+
 Conventions used everywhere in the project:
 - poses are (x [m], y [m], theta [rad]) with theta wrapped to (-pi, pi];
 - line segments are rows (x1, y1, x2, y2) [m] of an (N, 4) float array;
@@ -21,6 +25,15 @@ from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
+
+from island_msgs_py.limits import (
+    MAX_EXIT_INDEX,
+    MAX_EXITS_PER_ISLAND,
+    MAX_GO_CM,
+    MAX_ISLAND_ID,
+    MAX_LENGTH_M,
+    MAX_STRATEGY_STEPS,
+)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -96,8 +109,9 @@ class StrategyPrimitive:
     value: int
 
     def __post_init__(self) -> None:
-        if self.kind is PrimitiveKind.GO and self.value < 0:
-            raise IslandTypeError(f"Go distance must be >= 0 cm, got {self.value}")
+        if self.kind is PrimitiveKind.GO and not 0 <= self.value <= MAX_GO_CM:
+            raise IslandTypeError(
+                f"Go distance must be in [0, {MAX_GO_CM}] cm, got {self.value}")
         if self.kind is PrimitiveKind.ROT and not 0 <= self.value < 360:
             raise IslandTypeError(f"Rot angle must be in [0, 360) deg, got {self.value}")
 
@@ -116,6 +130,7 @@ class StrategyPrimitive:
 
 
 _PRIMITIVE_RE = re.compile(r"^\s*(Go|Rot)\s+(-?\d+)\s*$", re.IGNORECASE)
+_MAX_STEP_DIGITS = len(str(MAX_GO_CM))  # a longer number is out of range whatever it is
 
 
 @dataclass(frozen=True)
@@ -132,11 +147,19 @@ class ControlStrategy:
         """Parse `Go 125, Rot 270, Go 652`; an empty string is the empty strategy."""
         if not text.strip():
             return ControlStrategy(())
+        parts = text.split(",", MAX_STRATEGY_STEPS)
+        if len(parts) > MAX_STRATEGY_STEPS:
+            raise IslandTypeError(
+                f"control strategy: more than {MAX_STRATEGY_STEPS} steps (the limit)")
         steps = []
-        for part in text.split(","):
+        for part in parts:
             m = _PRIMITIVE_RE.match(part)
             if m is None:
-                raise IslandTypeError(f"control strategy: cannot parse step {part.strip()!r}")
+                raise IslandTypeError(f"control strategy: cannot parse step {_short(part)}")
+            if len(m.group(2).lstrip("-")) > _MAX_STEP_DIGITS:
+                raise IslandTypeError(
+                    f"control strategy: step {_short(part)} has more than {_MAX_STEP_DIGITS} "
+                    "digits (out of range)")
             kind = PrimitiveKind.GO if m.group(1).lower() == "go" else PrimitiveKind.ROT
             steps.append(StrategyPrimitive(kind, int(m.group(2))))
         return ControlStrategy(tuple(steps))
@@ -145,6 +168,12 @@ class ControlStrategy:
     def length_m(self) -> float:
         """Total Go distance [m]."""
         return sum(s.metres for s in self.steps)
+
+
+def _short(text: str, limit: int = 40) -> str:
+    """repr of `text`, cut to `limit` characters (error messages quote input, not megabytes)."""
+    t = repr(text.strip())
+    return t if len(t) <= limit else t[: limit - 3] + "..."
 
 
 class ModelType(StrEnum):
@@ -183,6 +212,99 @@ class LineModel:
         return int(self.segments.shape[0])
 
 
+class ExitState(StrEnum):
+    """What is known of an exit of an island."""
+
+    UNEXPLORED = "unexplored"  # free space leads on; nobody has driven it yet
+    EXPLORED = "explored"  # driven: the edge that drove it is recorded
+    BLOCKED = "blocked"  # tried or seen closed: not worth exploring
+
+
+@dataclass(frozen=True)
+class Exit:
+    """A direction in which free space leads away from an island, in the island's own frame.
+
+    `index` names the exit within its island (unique there, >= 0); `heading_rad` is the
+    direction from the island origin [rad] in [-pi, pi]; `width_m` the opening's width [m];
+    `edge` is the (source, target) of the edge that explored it: set exactly when the state is
+    `explored`.
+    """
+
+    index: int
+    heading_rad: float
+    width_m: float
+    state: ExitState = ExitState.UNEXPLORED
+    edge: tuple[int, int] | None = None
+
+    def __post_init__(self) -> None:
+        name = f"exit {self.index}"
+        if isinstance(self.index, bool) or not isinstance(self.index, int | np.integer) or not (
+            0 <= self.index <= MAX_EXIT_INDEX
+        ):
+            raise IslandTypeError(f"{name}: index must be an integer in [0, {MAX_EXIT_INDEX}]")
+        _require_finite(f"{name} heading_rad", self.heading_rad)
+        if not -math.pi <= self.heading_rad <= math.pi:
+            raise IslandTypeError(
+                f"{name}: heading_rad must be in [-pi, pi], got {self.heading_rad}")
+        _require_finite(f"{name} width_m", self.width_m)
+        if not 0.0 < self.width_m <= MAX_LENGTH_M:
+            raise IslandTypeError(
+                f"{name}: width_m must be in (0, {MAX_LENGTH_M:g}] m, got {self.width_m}")
+        if not isinstance(self.state, ExitState):
+            raise IslandTypeError(f"{name}: unknown state {self.state!r}")
+        if self.edge is not None:
+            if len(self.edge) != 2 or not all(
+                isinstance(v, int | np.integer) and not isinstance(v, bool) for v in self.edge
+            ):
+                raise IslandTypeError(f"{name}: edge must be (source, target) island ids")
+            object.__setattr__(self, "edge", (int(self.edge[0]), int(self.edge[1])))
+        if (self.state is ExitState.EXPLORED) != (self.edge is not None):
+            raise IslandTypeError(
+                f"{name}: an explored exit names the edge that explored it, and only an "
+                f"explored one (state {self.state.value}, edge {self.edge})")
+
+
+@dataclass(frozen=True)
+class ExitUpdate:
+    """A change of one exit's state: island `island`, exit `index`, the new state and, when
+    explored, the (source, target) of the edge that explored it."""
+
+    island: int
+    index: int
+    state: ExitState
+    edge: tuple[int, int] | None = None
+
+    def __post_init__(self) -> None:
+        _check_island_id(self.island, "exit update island")
+        Exit(self.index, 0.0, 1.0, self.state, self.edge)  # the same checks as an exit's
+
+
+def _check_island_id(value: int, name: str) -> None:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or not (
+        0 <= value <= MAX_ISLAND_ID
+    ):
+        raise IslandTypeError(f"{name} must be an integer in [0, {MAX_ISLAND_ID}], got {value!r}")
+
+
+def _check_exits(island_id: int, exits: tuple[Exit, ...]) -> tuple[Exit, ...]:
+    """Exits sorted by index; unique indices; an explored exit's edge touches the island."""
+    if len(exits) > MAX_EXITS_PER_ISLAND:
+        raise IslandTypeError(
+            f"island {island_id}: {len(exits)} exits (the limit is {MAX_EXITS_PER_ISLAND})")
+    seen: set[int] = set()
+    for e in exits:
+        if not isinstance(e, Exit):
+            raise IslandTypeError(f"island {island_id}: expected an Exit, got {type(e).__name__}")
+        if e.index in seen:
+            raise IslandTypeError(f"island {island_id}: duplicate exit index {e.index}")
+        seen.add(e.index)
+        if e.edge is not None and island_id not in e.edge:
+            raise IslandTypeError(
+                f"island {island_id}: exit {e.index} explored by edge {e.edge[0]}->{e.edge[1]}, "
+                "which does not touch the island")
+    return tuple(sorted(exits, key=lambda e: e.index))
+
+
 @dataclass(frozen=True)
 class Island:
     """A node v_i = {L, T} of the global map, plus what the builder knew when it accepted it.
@@ -198,10 +320,11 @@ class Island:
     built_at_s: float  # time of acceptance [s] (sim or log time)
     frame_id: str = ""
     origin_truth: Pose2D | None = None
+    exits: tuple[Exit, ...] = ()  # sorted by index
 
     def __post_init__(self) -> None:
-        if self.id < 0:
-            raise IslandTypeError(f"island id must be >= 0, got {self.id}")
+        _check_island_id(self.id, "island id")
+        object.__setattr__(self, "exits", _check_exits(self.id, tuple(self.exits)))
         _require_finite(f"island {self.id} r", self.r)
         _require_finite(f"island {self.id} built_at_s", self.built_at_s)
         if not self.frame_id:
@@ -218,8 +341,19 @@ class Edge:
     weight: float  # cost used for planning: length travelled [m] plus expected error [m]
     length_m: float = 0.0
     expected_error_m: float = 0.0
+    source_exit: int | None = None  # the exit of the source island the edge leaves by
+    target_exit: int | None = None  # the exit of the target island the edge enters by
 
     def __post_init__(self) -> None:
+        _check_island_id(self.source, f"edge {self.source}->{self.target}: source")
+        _check_island_id(self.target, f"edge {self.source}->{self.target}: target")
+        for end in ("source_exit", "target_exit"):
+            v = getattr(self, end)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int | np.integer)
+                                  or not 0 <= v <= MAX_EXIT_INDEX):
+                raise IslandTypeError(
+                    f"edge {self.source}->{self.target}: {end} must be an exit index in "
+                    f"[0, {MAX_EXIT_INDEX}] or None, got {v!r}")
         if self.source == self.target:
             raise IslandTypeError(f"edge {self.source}->{self.target}: an edge to itself")
         _require_finite(f"edge {self.source}->{self.target} weight", self.weight)

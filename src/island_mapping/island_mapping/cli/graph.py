@@ -4,9 +4,11 @@
   islands graph convert GRAPH OUT          .json <-> .geojson (Nav2 Route Server) <-> .graphml
   islands graph plan GRAPH --from A --to B least-weight route with its strategies (JSON)
   islands graph strategies GRAPH           the edges as the paper's Table 1
+  islands graph salvage STORE --out NEW    copy what is intact of a damaged store into a new one
 
 GRAPH is a graph.json / graph.geojson / graph.graphml file, or a graph server's storage
-directory (snapshot.json + changes.jsonl), which is read without being changed.
+directory (graph.sqlite3, or the old snapshot.json + changes.jsonl), which is read without
+being changed. A directory that holds no store is an error, not an empty graph.
 """
 
 from __future__ import annotations
@@ -20,7 +22,14 @@ import networkx as nx
 from island_msgs_py.json_io import GraphFormatError
 
 from island_mapping.cli import CliError
-from island_mapping.core.graph import GraphError, GraphStore, NoRouteError, TopoGraph
+from island_mapping.core.graph import (
+    GraphError,
+    GraphStore,
+    NoRouteError,
+    TopoGraph,
+    exit_state_counts,
+    salvage_store,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -36,6 +45,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--to", dest="target", type=int, required=True, help="target island id")
     p = sub.add_parser("strategies", help="print the edges like the paper's Table 1")
     p.add_argument("graph", help="graph file or storage directory")
+    p = sub.add_parser("salvage", help="copy the intact rows of a damaged store into a new "
+                                       "store and list what was lost (the damaged one is only "
+                                       "read)")
+    p.add_argument("graph", help="the damaged storage directory")
+    p.add_argument("--out", required=True, help="a missing or empty directory for the new store")
 
 
 def load(path_text: str) -> TopoGraph:
@@ -64,6 +78,7 @@ def info(graph: TopoGraph) -> dict[str, object]:
         "segments": sum(len(i.model) for i in islands),
         "total_weight_m": sum(e.weight for e in graph.edges()),
         "with_origin_truth": sum(i.origin_truth is not None for i in islands),
+        "exits": exit_state_counts(islands),
     }
 
 
@@ -75,7 +90,18 @@ def strategies_table(graph: TopoGraph) -> str:
     return "\n".join(lines)
 
 
+def salvage(args: argparse.Namespace) -> int:
+    try:
+        report = salvage_store(Path(args.graph).expanduser(), Path(args.out).expanduser())
+    except (GraphFormatError, GraphError, OSError) as exc:
+        raise CliError(str(exc)) from exc
+    print(json.dumps({"out": args.out, **report.as_dict()}, indent=1))
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.graph_command == "salvage":
+        return salvage(args)
     graph = load(args.graph)
     if args.graph_command == "info":
         print(json.dumps(info(graph), indent=1))

@@ -4,8 +4,9 @@ Topics (latched: reliable, transient local, depth 1; republished after every cha
   /topo_graph/markers  visualization_msgs/MarkerArray  (display layout, see conversions.py)
   /topo_graph/json     std_msgs/String                 (the versioned graph JSON document)
 Services:
-  /topo_graph/add   rcl_interfaces/srv/SetParameters  each Parameter named `island` or `edge`
-                    with a JSON string value; add or replace; one result per item
+  /topo_graph/add   rcl_interfaces/srv/SetParameters  each Parameter named `island`, `edge` or
+                    `exit` with a JSON string value; add or replace (an exit: set its state);
+                    one result per item; at most `max_items_per_request` items
   /topo_graph/get   std_srvs/srv/Trigger             message = the graph JSON
   /topo_graph/plan  nav_msgs/srv/GetPlan             start/goal header.frame_id = island frames
                     (`island_<id>`); plan = the island origins in route order (empty if none)
@@ -25,7 +26,7 @@ from typing import Any
 from island_msgs_py.json_io import GraphFormatError
 from island_msgs_py.qos import LATCHED
 from island_msgs_py.ros_params import declare_config, run_node
-from island_msgs_py.types import Island, IslandTypeError
+from island_msgs_py.types import ExitUpdate, Island, IslandTypeError
 from nav_msgs.msg import Path as PathMsg
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
@@ -62,8 +63,7 @@ class TopoGraphServerNode(Node):
         storage = self.config.storage_path.strip()
         self.store: GraphStore | None = None
         if storage:
-            store_cfg = GraphStoreConfig(compact_every=self.config.compact_every)
-            self.store = GraphStore(os.path.expanduser(storage), store_cfg)
+            self.store = GraphStore(os.path.expanduser(storage), GraphStoreConfig())
             self.graph = self.store.graph
         else:
             self.graph = TopoGraph()
@@ -94,6 +94,11 @@ class TopoGraphServerNode(Node):
     # --- changes -------------------------------------------------------------------------------
 
     def _apply(self, item: Any) -> str:
+        if isinstance(item, ExitUpdate):
+            island = (self.store.apply_exit_update(item) if self.store is not None
+                      else self.graph.apply_exit_update(item))
+            state = next(e for e in island.exits if e.index == item.index).state
+            return f"set exit {item.index} of island {item.island} to {state.value}"
         if isinstance(item, Island):
             replaced = (self.store.put_island(item) if self.store is not None
                         else self.graph.put_island(item))
@@ -103,6 +108,14 @@ class TopoGraphServerNode(Node):
         return f"{'replaced' if replaced else 'added'} edge {item.source}->{item.target}"
 
     def _on_add(self, request: SetParameters.Request, response: SetParameters.Response) -> Any:
+        limit = self.config.max_items_per_request
+        if len(request.parameters) > limit:
+            reason = (f"request refused: {len(request.parameters)} items, the limit is {limit} "
+                      "per request (max_items_per_request); send them in several requests")
+            self._reject(f"/topo_graph/add {reason}")
+            response.results = [SetParametersResult(successful=False, reason=reason)
+                                for _ in request.parameters]
+            return response
         changed = False
         for k, param in enumerate(request.parameters):
             try:

@@ -1,0 +1,11 @@
+"""The graph package's exceptions (all ValueErrors, so callers that catch bad input catch them)."""
+
+from __future__ import annotations
+
+
+class GraphError(ValueError):
+    """A request on the map was rejected (the message names the island/edge and the problem)."""
+
+
+class NoRouteError(GraphError):
+    """Both islands exist but no directed path joins them."""
