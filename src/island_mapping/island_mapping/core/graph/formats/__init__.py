@@ -7,7 +7,7 @@ Public API:
   `geojson_to_parts`/`load_geojson` and `graph_to_geojson`/`save_geojson` (Nav2 Route Server
   GeoJSON), `load_graphml` and `graph_to_graphml`/`save_graphml`.
 
-Loaders return `Parts` (islands and edges, each validated); `TopoGraph.load_*` builds the graph.
+Loaders return `Parts` (islands and edges, each validated); `GraphView.load_*` builds the graph.
 Savers write atomically.
 """
 
@@ -17,11 +17,10 @@ import os
 from collections.abc import Callable
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from island_msgs_py.json_io import GraphFormatError
 
-from island_mapping.core.graph.formats.common import Parts
+from island_mapping.core.graph.formats.common import GraphView, Parts
 from island_mapping.core.graph.formats.geojson_loader import geojson_to_parts, load_geojson
 from island_mapping.core.graph.formats.geojson_saver import (
     GEOJSON_FORMAT,
@@ -36,9 +35,6 @@ from island_mapping.core.graph.formats.graphml_saver import (
 )
 from island_mapping.core.graph.formats.json_loader import load_json
 from island_mapping.core.graph.formats.json_saver import save_json
-
-if TYPE_CHECKING:
-    from island_mapping.core.graph.model import TopoGraph
 
 __all__ = [
     "GEOJSON_FORMAT",
@@ -74,7 +70,7 @@ _LOADERS: dict[GraphFormat, Callable[[str | os.PathLike[str]], Parts]] = {
     GraphFormat.GEOJSON: load_geojson,
     GraphFormat.GRAPHML: load_graphml,
 }
-_SAVERS: dict[GraphFormat, Callable[[TopoGraph, str | os.PathLike[str]], Path]] = {
+_SAVERS: dict[GraphFormat, Callable[[GraphView, str | os.PathLike[str]], Path]] = {
     GraphFormat.JSON: save_json,
     GraphFormat.GEOJSON: save_geojson,
     GraphFormat.GRAPHML: save_graphml,
@@ -99,12 +95,12 @@ def load_any(path: str | os.PathLike[str]) -> Parts:
     return _LOADERS[format_of(path)](path)
 
 
-def save_any(graph: TopoGraph, path: str | os.PathLike[str]) -> Path:
+def save_any(graph: GraphView, path: str | os.PathLike[str]) -> Path:
     """Save by extension: .json, .geojson, .graphml."""
     return _SAVERS[format_of(path)](graph, path)
 
 
-def save_all(graph: TopoGraph, out_dir: str | os.PathLike[str]) -> dict[str, Path]:
+def save_all(graph: GraphView, out_dir: str | os.PathLike[str]) -> dict[str, Path]:
     """Write graph.json, graph.geojson and graph.graphml into `out_dir` (atomically each)."""
     d = Path(out_dir)
     return {key: save_any(graph, d / name) for key, name in EXPORT_NAMES.items()}

@@ -21,15 +21,13 @@ import dataclasses
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from island_msgs_py.types import Edge, Exit, Island, Pose2D
 
+from island_mapping.core.graph.formats.common import GraphView
 from island_mapping.core.graph.strategy import reverse_strategy
 from island_msgs_py import json_io
-
-if TYPE_CHECKING:
-    from island_mapping.core.graph.model import TopoGraph
 
 GEOJSON_FORMAT = "islands-graph-geojson"
 
@@ -87,7 +85,7 @@ def _edge_feature(
     }
 
 
-def graph_to_geojson(graph: TopoGraph) -> dict[str, Any]:
+def graph_to_geojson(graph: GraphView) -> dict[str, Any]:
     """The FeatureCollection of `graph` (see the module docstring)."""
     layout = graph.display_layout()
     features = [_island_feature(island, layout[island.id]) for island in graph.islands()]
@@ -116,6 +114,6 @@ def graph_to_geojson(graph: TopoGraph) -> dict[str, Any]:
     }
 
 
-def save_geojson(graph: TopoGraph, path: str | os.PathLike[str]) -> Path:
+def save_geojson(graph: GraphView, path: str | os.PathLike[str]) -> Path:
     """Write `graph_to_geojson(graph)` atomically."""
     return json_io.atomic_write_text(path, json_io.dumps(graph_to_geojson(graph), indent=1) + "\n")

@@ -8,20 +8,17 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import networkx as nx
 
+from island_mapping.core.graph.formats.common import GraphView
 from island_msgs_py import json_io
-
-if TYPE_CHECKING:
-    from island_mapping.core.graph.model import TopoGraph
 
 GRAPHML_FORMAT = "islands-graph-graphml"
 NO_EXIT = -1  # GraphML has no null: an edge's unknown source/target exit
 
 
-def graph_to_graphml(graph: TopoGraph) -> nx.DiGraph:
+def graph_to_graphml(graph: GraphView) -> nx.DiGraph:
     """A DiGraph with only GraphML-representable attributes (strings, doubles, ints)."""
     g = nx.DiGraph(format=GRAPHML_FORMAT, version=json_io.FORMAT_VERSION)
     for island in graph.islands():
@@ -46,7 +43,7 @@ def graph_to_graphml(graph: TopoGraph) -> nx.DiGraph:
     return g
 
 
-def save_graphml(graph: TopoGraph, path: str | os.PathLike[str]) -> Path:
+def save_graphml(graph: GraphView, path: str | os.PathLike[str]) -> Path:
     """Write `graph_to_graphml(graph)` atomically."""
     text = "\n".join(nx.generate_graphml(graph_to_graphml(graph))) + "\n"
     return json_io.atomic_write_text(path, text)

@@ -4,14 +4,11 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
 
+from island_mapping.core.graph.formats.common import GraphView
 from island_msgs_py import json_io
 
-if TYPE_CHECKING:
-    from island_mapping.core.graph.model import TopoGraph
 
-
-def save_json(graph: TopoGraph, path: str | os.PathLike[str]) -> Path:
+def save_json(graph: GraphView, path: str | os.PathLike[str]) -> Path:
     """Write the graph document atomically (indented for reading and diffing)."""
     return json_io.save_graph_json(path, graph.islands(), graph.edges())
