@@ -2,7 +2,8 @@
 
 `BuilderConfig` (eq. 3, the attempt rules, where an accepted island's origin goes) holds a
 `StarConfig` (the four-corner star the robot drives) and a `RevisitConfig` (recognising an
-island the robot already built).
+island the robot already built). Each field's `help` says what it does; docs/builder.md says
+why the defaults are what they are.
 """
 
 from __future__ import annotations
@@ -26,6 +27,16 @@ def _point_to_line() -> LocalizeConfig:
     """Localization with the Gauss-Newton point-to-line step (the Dudek-MacKenzie step reaches
     the same fixed point but often needs more than its iteration limit)."""
     return LocalizeConfig(solver=Solver.POINT_TO_LINE)
+
+
+def _check(owner: str, obj: object, names: tuple[str, ...], strict: bool) -> None:
+    """Each named field must be a finite number > 0 (strict) or >= 0."""
+    for name in names:
+        v = getattr(obj, name)
+        ok = isinstance(v, int | float) and math.isfinite(v) and (v > 0 if strict else v >= 0)
+        if not ok:
+            bound = "> 0" if strict else ">= 0"
+            raise BuilderError(f"{owner}.{name}: expected a finite number {bound}, got {v!r}")
 
 
 @dataclass(frozen=True)
@@ -67,27 +78,16 @@ class StarConfig:
         default=20.0,
         metadata={
             "help": "on a leg, turn in place instead of driving while the heading is off the "
-            "leg's line by more than this (measured live: a leg begun while the follower was "
-            "still being paused started 46 deg off, swung wider and touched a wall) [deg]"
+            "leg's line by more than this [deg]"
         },
     )
 
     def __post_init__(self) -> None:
-        for name in (
-            "leg_length_m",
-            "min_leg_m",
-            "clearance_m",
-            "ahead_halfwidth_deg",
-            "speed_mps",
-            "turn_rate_radps",
-            "heading_gain_per_s",
-            "position_tol_m",
-            "heading_tol_deg",
+        _check("StarConfig", self, (
+            "leg_length_m", "min_leg_m", "clearance_m", "ahead_halfwidth_deg", "speed_mps",
+            "turn_rate_radps", "heading_gain_per_s", "position_tol_m", "heading_tol_deg",
             "drive_heading_err_deg",
-        ):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
-                raise BuilderError(f"StarConfig.{name}: expected a finite number > 0, got {v!r}")
+        ), strict=True)
         if self.min_leg_m > self.leg_length_m:
             raise BuilderError(
                 f"StarConfig.min_leg_m ({self.min_leg_m}) exceeds leg_length_m "
@@ -99,9 +99,10 @@ class StarConfig:
 class RevisitConfig:
     """Recognising an island the robot already built (beyond the paper: revisits on a loop).
 
-    Tried whenever the quick check passes (before deferring or starting a star): islands whose
-    origin lies near the odometric pose are searched for the recent scan points; a recognition
-    must converge with a small residual and pass the new-island localization check.
+    Tried whenever the quick check passes (before deferring or starting a star), and on a
+    star's points before it becomes a new island: islands whose origin may lie near the
+    odometric pose are searched for the scan points; a recognition must converge with a small
+    residual, be unambiguous and pass the new-island localization check.
     """
 
     enabled: bool = field(
@@ -112,8 +113,7 @@ class RevisitConfig:
         metadata={
             "help": "the position (heading) search spans this many sigmas of where the "
             "candidate's origin may be: the odometric drift since its origin was last known, "
-            "or epsilon plus the error of its link to the last island (the odometry's "
-            "covariance is conservative: measured errors were 0.2-1 sigma) [-]"
+            "or epsilon plus the error of its link chain from the last island [-]"
         },
     )
     search_min_m: float = field(
@@ -166,9 +166,8 @@ class RevisitConfig:
         default=0.1,
         metadata={
             "help": "a recognition's fit must constrain the position along every axis this "
-            "much (smaller eigenvalue of the normalized normal matrix; hallway points alias "
-            "along it: paper_fig4's false recognitions, 1.7-6.9 m off, had 0.03-0.06, true "
-            "ones 0.17-0.47) [0-0.5]"
+            "much (smaller eigenvalue of the normalized normal matrix; hallway points fit a "
+            "hallway anywhere along it) [0-0.5]"
         },
     )
     min_inlier_fraction: float = field(
@@ -224,17 +223,13 @@ class RevisitConfig:
         default=True,
         metadata={
             "help": "before a star that passed eq. 3 becomes a new island, match its points "
-            "(a full circle at the anchor and four legs: far richer than the points seen "
-            "while following) against the known islands nearby; a match is a revisit [bool]"
+            "(a full circle at the anchor and four legs) against the known islands nearby; "
+            "a match is a revisit [bool]"
         },
     )
     star_search_sigmas: float = field(
         default=2.5,
-        metadata={
-            "help": "search_sigmas for the star's points: a second lap's odometric estimate of "
-            "an island was found 1.5 sigma off (paper_fig4), and the star's fit can afford "
-            "a wide search [-]"
-        },
+        metadata={"help": "search_sigmas for the star's points [-]"},
     )
     star_search_max_m: float = field(
         default=6.0,
@@ -256,10 +251,8 @@ class RevisitConfig:
     star_max_residual_m: float = field(
         default=0.2,
         metadata={
-            "help": "largest RMS residual of a recognition from a star's points: echoes from "
-            "five places and wide cones near walls scatter more (a true match in a box corridor "
-            "had 0.152 m; the false ones found in paper_fig4 had 0.11-0.14, so the residual "
-            "does not guard against look-alikes, the constraint and ambiguity tests do) [m]"
+            "help": "largest RMS residual of a recognition from a star's points (echoes from "
+            "five places scatter more than a follower's recent points) [m]"
         },
     )
     star_max_points: int = field(
@@ -269,8 +262,7 @@ class RevisitConfig:
         default=0.3,
         metadata={
             "help": "an edge's drive onto a recognised origin nearer than this is only the final "
-            "turn (the arrival's localization takes up the rest; a turn-around to go 10 cm "
-            "and a turn back made edges fragile) [m]"
+            "turn (the arrival's localization takes up the rest) [m]"
         },
     )
     dock_tol_m: float = field(
@@ -288,40 +280,17 @@ class RevisitConfig:
     )
 
     def __post_init__(self) -> None:
-        for name in (
-            "search_sigmas",
-            "search_min_m",
-            "search_max_m",
-            "search_step_m",
-            "heading_step_deg",
-            "inlier_m",
-            "history_m",
-            "max_range_m",
-            "max_residual_m",
-            "ambiguity_m",
-            "max_dock_m",
-            "dock_tol_m",
-            "dock_tol_deg",
-            "strategy_min_go_m",
-            "star_search_sigmas",
-            "star_max_residual_m",
-            "star_search_max_m",
-            "star_search_max_deg",
-            "rival_max_m",
-            "rival_step_m",
-        ):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
-                raise BuilderError(
-                    f"RevisitConfig.{name}: expected a finite number > 0, got {v!r}"
-                )
-        for name in ("search_max_deg", "path_clearance_m", "min_inlier_fraction", "min_loop_m",
-                     "min_constraint", "rival_sigmas"):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
-                raise BuilderError(
-                    f"RevisitConfig.{name}: expected a finite number >= 0, got {v!r}"
-                )
+        _check("RevisitConfig", self, (
+            "search_sigmas", "search_min_m", "search_max_m", "search_step_m",
+            "heading_step_deg", "inlier_m", "history_m", "max_range_m", "max_residual_m",
+            "ambiguity_m", "max_dock_m", "dock_tol_m", "dock_tol_deg", "strategy_min_go_m",
+            "star_search_sigmas", "star_max_residual_m", "star_search_max_m",
+            "star_search_max_deg", "rival_max_m", "rival_step_m",
+        ), strict=True)
+        _check("RevisitConfig", self, (
+            "search_max_deg", "path_clearance_m", "min_inlier_fraction", "min_loop_m",
+            "min_constraint", "rival_sigmas",
+        ), strict=False)
         for name in ("refine_guesses", "min_points", "max_points", "star_search_cells",
                      "star_max_points"):
             iv = getattr(self, name)
@@ -338,7 +307,7 @@ class RevisitConfig:
 
 @dataclass(frozen=True)
 class BuilderConfig:
-    """Eq. 3 and the attempt rules of the island builder."""
+    """Eq. 3, the attempt rules and the placement of an accepted island's origin."""
 
     e_min_m: float = field(
         default=0.3,
@@ -380,10 +349,8 @@ class BuilderConfig:
         default=4.0,
         metadata={
             "help": "no attempt while the robot is within this odometric distance of the last "
-            "island's origin: it is still within that island's reach (star legs 1.2 m plus the "
-            "sonar's dense range), so it is not lost whatever epsilon says (epsilon carries the "
-            "star's turning drift and passed E_min 4 m on, which put a second island just past "
-            "a junction whose mouth already had one) [m]"
+            "island's origin: it is still within that island's reach, whatever epsilon says "
+            "(0 = off) [m]"
         },
     )
     settled_go_m: float = field(
@@ -415,9 +382,7 @@ class BuilderConfig:
         default=5.0,
         metadata={
             "help": "a deferred attempt starts anyway after this long without reaching "
-            "the next check (the robot stopped), once the hall follower is not turning (at a "
-            "dead end it turns round in place: live seed 9 anchored an island mid-turn, 43 deg "
-            "off the corridor, and going on from it failed 4 of 20 routes) [s]"
+            "the next check (the robot stopped), once the hall follower is not turning [s]"
         },
     )
     dismiss_min_legs: int = field(
@@ -434,8 +399,7 @@ class BuilderConfig:
         default=True,
         metadata={
             "help": "once the measure passes eq. 3, still drive the remaining legs so the "
-            "island's model is complete (the paper's Fig. 4a shows full stars for built "
-            "islands); false = accept at once [bool]"
+            "island's model is complete; false = accept at once [bool]"
         },
     )
     register_legs: bool = field(
@@ -443,25 +407,21 @@ class BuilderConfig:
         metadata={
             "help": "register each star leg's echoes onto the model the earlier legs built and "
             "turn them, and the anchor, by the heading found, weighted against odometry's "
-            "heading variance since the anchor (a Kalman gain with register_sigma_deg): every "
-            "turn at the anchor adds heading noise, which otherwise turns the later legs' walls "
-            "in the island's model [bool]"
+            "heading variance since the anchor (a Kalman gain with register_sigma_deg) [bool]"
         },
     )
     register_sigma_deg: float = field(
         default=2.5,
         metadata={
-            "help": "heading error of one leg's registration onto the earlier legs' sonar "
-            "model (a partial view through 25 deg cones: 2-4 deg seen on paper_fig4) [deg]"
+            "help": "heading error of one leg's registration onto the earlier legs' model [deg]"
         },
     )
     origin_at_peak: bool = field(
         default=True,
         metadata={
             "help": "put an accepted island's origin where its own model's measure peaks along "
-            "the star legs the robot drove (not where the attempt happened to start: the quick "
-            "check passes a few metres before a junction, or just past a door); the edge gets "
-            "the drive from the anchor to the origin [bool]"
+            "the star legs the robot drove, not where the attempt started; the edge gets the "
+            "drive from the anchor to the origin [bool]"
         },
     )
     peak_step_m: float = field(
@@ -472,22 +432,16 @@ class BuilderConfig:
         metadata={
             "help": "also search for the peak beyond the ahead leg, along the arrival heading, "
             "up to this far from the anchor (within the anchor's free range ahead, the drives "
-            "there from the anchor and from the robot clear of the model's walls): the "
-            "junction the robot was heading into; and beyond the back leg, within the straight "
-            "path the robot came along: the junction it has just left; the model's reach "
-            "(about 2 m past the anchor along a hallway, where its walls end) limits it in "
-            "practice. Such an origin is "
-            "probed (driven to, looked around from, checked, its look added to the model) "
-            "before it is kept. 0 = off: islands may then stay 1-1.5 m short of a junction's "
-            "mouth, where only the hallway's walls are in view within 3 m [m]"
+            "there from the anchor and from the robot clear of the model's walls). Such an "
+            "origin is probed (driven to, looked around from, checked, its look added to the "
+            "model) before it is kept. 0 = off [m]"
         },
     )
     peak_behind: bool = field(
         default=False,
         metadata={
             "help": "with peak_ahead_m > 0, also search beyond the back leg, within the "
-            "straight path the hall follower reported driving up to the anchor (free space): "
-            "an attempt that starts 2-3 m past a junction the robot has just left [bool]"
+            "straight path the hall follower reported driving up to the anchor [bool]"
         },
     )
     peak_min_gain: float = field(
@@ -500,27 +454,20 @@ class BuilderConfig:
     peak_ahead_min_gain: float = field(
         default=0.1,
         metadata={
-            "help": "the gain that moves the origin ahead along the driven ahead leg (the "
-            "arrival heading, seen close by the star: the move adds only a Go to the edge and "
-            "no probe). The default is peak_min_gain's: live paper_fig4 with 0.02 put 1 of 123 "
-            "islands in plain hallways on twelve seeds (5 of 120 with 0.1), but routes were "
-            "224/240 against 237/240 (seeds 9 and 10: 11/20 and 16/20 against 19/20 and 20/20, "
-            "a false recognition and a weakly localizable island; reproduced by a rerun) [-]"
+            "help": "the gain that moves the origin ahead along the driven ahead leg (the move "
+            "adds only a Go to the edge and asks for no probe) [-]"
         },
     )
     origin_feature_radius_m: float = field(
         default=3.0,
         metadata={
             "help": "when the origin the peak search chose sees, in the island's own model, "
-            "only parallel walls within this distance (a plain hallway: nothing fixes the "
-            "position along it), move it to the best point along the driven legs that sees "
-            "walls in two directions and still passes the acceptance bound; failing that, "
-            "probe the best such point past the legs (ahead, or back along the straight path "
-            "the robot came by, as peak_behind would: an attempt started 1-3 m past a "
-            "junction); after a probe whose look's model still shows a plain hallway at the probed "
-            "origin, climb once on to the peak further on (as probe_climbs 1 would). The same "
-            "rule as the evaluation's placement check, on the sonar model instead of the "
-            "world. 0 = off [m]"
+            "only parallel walls within this distance (a plain hallway), move it to the best "
+            "point along the driven legs that sees walls in two directions and still passes "
+            "the acceptance bound; failing that, probe the best such point past the legs "
+            "(ahead, or back along the straight path the robot came by); after a probe whose "
+            "look's model still shows a plain hallway there, climb once on to the peak further "
+            "on. 0 = off [m]"
         },
     )
     verify_localization: bool = field(
@@ -541,26 +488,19 @@ class BuilderConfig:
         default=8.0,
         metadata={
             "help": "the check of an origin past the legs also starts from guesses turned by "
-            "+- this, as navigation's localization does (navigation.search_heading_deg) [deg]"
+            "+- this, as navigation's localization does [deg]"
         },
     )
     probe_agree_deg: float = field(
         default=4.0,
-        metadata={
-            "help": "and all its fits must agree in heading within this (an origin moved 1.6 m "
-            "on to the end of a corridor passed the position test, then arrivals there "
-            "localized 10-14 deg off in 5 of 20 routes) [deg]"
-        },
+        metadata={"help": "and all its fits must agree in heading within this [deg]"},
     )
     probe_climbs: int = field(
         default=0,
         metadata={
             "help": "after a probe passes, search on from there with the model its look "
-            "completed (the star saw a junction's near side only) and probe again at most this "
-            "many times while the peak moves on. 0 = off, the default: live paper_fig4 with 1 "
-            "put 0 of 59 islands in plain hallways on six seeds, but on six more one climb "
-            "went on 0.8 m to a door whose model then had an 11.8 deg heading error (routes "
-            "10/20; 104/120 on those seeds against 116/120 with 0) [-]"
+            "completed and probe again at most this many times while the peak moves on "
+            "(0 = off) [-]"
         },
     )
     centre_radius_m: float = field(
@@ -601,31 +541,16 @@ class BuilderConfig:
     )
 
     def __post_init__(self) -> None:
-        for name in ("e_min_m", "threshold_line", "threshold_fisher", "quick_history_m",
-                     "peak_step_m", "register_sigma_deg"):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
-                raise BuilderError(f"BuilderConfig.{name}: expected a finite number > 0, got {v!r}")
-        for name in (
-            "bound_floor",
-            "quick_reject_fraction",
-            "retry_distance_m",
-            "vicinity_m",
-            "settled_go_m",
-            "dismiss_fraction",
-            "first_island_min_measure",
-            "peak_min_gain",
-            "peak_ahead_min_gain",
-            "peak_ahead_m",
-            "origin_feature_radius_m",
-            "probe_turn_deg",
+        _check("BuilderConfig", self, (
+            "e_min_m", "threshold_line", "threshold_fisher", "quick_history_m", "peak_step_m",
+            "register_sigma_deg",
+        ), strict=True)
+        _check("BuilderConfig", self, (
+            "bound_floor", "quick_reject_fraction", "retry_distance_m", "vicinity_m",
+            "settled_go_m", "dismiss_fraction", "first_island_min_measure", "peak_min_gain",
+            "peak_ahead_min_gain", "peak_ahead_m", "origin_feature_radius_m", "probe_turn_deg",
             "probe_agree_deg",
-        ):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
-                raise BuilderError(
-                    f"BuilderConfig.{name}: expected a finite number >= 0, got {v!r}"
-                )
+        ), strict=False)
         if isinstance(self.probe_climbs, bool) or not isinstance(self.probe_climbs, int) or (
             self.probe_climbs < 0
         ):
