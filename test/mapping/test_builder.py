@@ -23,16 +23,26 @@ from island_mapping.core.builder import (
     DismissReason,
     EventKind,
     IslandBuilder,
+    Measures,
     RelativeCovariance,
     RevisitConfig,
     StampSync,
     StarConfig,
-    _Attempt,
-    _from_frame,
+    Survey,
     eq3_bound,
     event_to_dict,
+    follower_settled,
+    leg_heading,
+    localizes_back,
     normalized_measures,
+    peak_origin,
+    register_look,
 )
+from island_mapping.core.builder import checks as checks_module
+from island_mapping.core.builder import docking as docking_module
+from island_mapping.core.builder import recognition as recognition_module
+from island_mapping.core.builder import star as star_module
+from island_mapping.core.builder.geometry import from_frame
 from island_mapping.core.graph import strategy_displacement
 from island_mapping.core.localize import localize
 from island_mapping.core.placement import PlaceKind, classify_place
@@ -448,16 +458,20 @@ class _Recorder(IslandBuilder):
     def __init__(self) -> None:
         super().__init__(BuilderConfig(build_first_island=False))
         self.seen: list[tuple[float, float, float | None]] = []
-        self._odom_t = math.nan
+        self.odom_t = math.nan
+        self.truth_x: float | None = None
 
-    def on_odometry(self, t_s: float, odom_pose: Pose2D, cov3x3: object) -> None:  # type: ignore[override]
-        super().on_odometry(t_s, odom_pose, cov3x3)  # type: ignore[arg-type]
-        self._odom_t = t_s
+    def on_odometry(self, t_s: float, odom_pose: Pose2D, cov3x3: npt.ArrayLike) -> None:
+        super().on_odometry(t_s, odom_pose, cov3x3)
+        self.odom_t = t_s
 
-    def on_scan(self, t_s: float, ranges_m: object, angles_rad: object) -> None:  # type: ignore[override]
-        truth = self._truth.x if self._truth is not None else None
-        self.seen.append((t_s, self._odom_t, truth))
-        super().on_scan(t_s, ranges_m, angles_rad)  # type: ignore[arg-type]
+    def on_ground_truth(self, pose: Pose2D) -> None:
+        super().on_ground_truth(pose)
+        self.truth_x = pose.x
+
+    def on_scan(self, t_s: float, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike) -> None:
+        self.seen.append((t_s, self.odom_t, self.truth_x))
+        super().on_scan(t_s, ranges_m, angles_rad)
 
 
 def _feed(order: str) -> _Recorder:
@@ -494,7 +508,7 @@ def test_stamp_sync_pairs_each_scan_with_its_own_odometry_whatever_the_arrival_o
             assert t_odom == pytest.approx(t_scan)  # not the newer odometry that had arrived
             assert truth_x == pytest.approx(t_scan)
     assert by_stamp.seen == early_odom.seen
-    assert by_stamp._path_m == pytest.approx(early_odom._path_m)
+    assert by_stamp.path_m == pytest.approx(early_odom.path_m)
 
 
 def test_stamp_sync_holds_a_scan_until_its_odometry_and_bounds_its_buffers() -> None:
@@ -640,9 +654,11 @@ def test_a_look_alike_island_that_may_be_here_blocks_the_recognition(offset_m: f
 
     def look_alike(b: IslandBuilder) -> None:
         i0 = b.islands[0]
-        origin, cov = b._known[0]
+        known = b.recognizer.known(0)
+        assert known is not None
+        origin, cov = known
         b.islands.append(replace(i0, id=1, origin_truth=None))
-        b._known[1] = (origin.compose(Pose2D(0.0, offset_m, 0.0)), cov.copy())
+        b.recognizer.remember(1, origin.compose(Pose2D(0.0, offset_m, 0.0)), cov.copy())
 
     def revisits(rival_sigmas: float) -> tuple[list[BuilderEvent], IslandBuilder]:
         b = IslandBuilder(BuilderConfig(revisit=RevisitConfig(rival_sigmas=rival_sigmas)))
@@ -667,10 +683,8 @@ def test_a_recognition_turned_out_of_the_heading_window_is_refused(
     refinement comes back turned 90 deg from the odometric heading, far outside the heading
     window the search covered, the recognition is refused (paper_fig4: a + junction fitted
     itself turned by 90 deg with a 0.09 m residual and 92 % inliers; the position check alone
-    let it through)."""
-    import island_mapping.core.builder as builder_module
-
-    real = builder_module.localize
+    let it through). Every localization the builder runs comes back turned."""
+    real = localize
 
     def turned(model: LineModel, pts: np.ndarray, guess: Pose2D, cfg: object) -> object:
         res = real(model, pts, guess, cfg)  # type: ignore[arg-type]
@@ -678,7 +692,8 @@ def test_a_recognition_turned_out_of_the_heading_window_is_refused(
 
     plain = IslandBuilder(BuilderConfig())
     assert EventKind.ISLAND_REVISITED in kinds(run_there_and_back(plain, 150.0).events)
-    monkeypatch.setattr(builder_module, "localize", turned)
+    for module in (checks_module, recognition_module, docking_module):
+        monkeypatch.setattr(module, "localize", turned)
     b = IslandBuilder(BuilderConfig())
     run = run_there_and_back(b, 150.0)
     assert EventKind.ISLAND_REVISITED not in kinds(run.events)
@@ -941,14 +956,13 @@ def test_the_origin_moves_ahead_into_the_mouth_by_gain_or_off_a_plain_hallway(
     anchor the model shows only the hallway's parallel walls and at the mouth the crossing's
     far wall too. Either way the point was driven through: no probe is asked for."""
     truth, segs, legs_done = FIG4_SHORT_OF_MOUTH
-    b = IslandBuilder(BuilderConfig(peak_ahead_min_gain=ahead_gain,
-                                    origin_feature_radius_m=feature_radius_m))
-    att = _Attempt(anchor=Pose2D(0.0, 0.0, 0.0), anchor_truth=truth, anchor_cov=np.zeros((3, 3)),
-                   epsilon_m=0.5, bound=0.6, first=False, legs_done=list(legs_done))
+    m = Measures.of(BuilderConfig(peak_ahead_min_gain=ahead_gain,
+                                  origin_feature_radius_m=feature_radius_m))
+    survey = Survey(legs_m=tuple(legs_done), bound=0.6)
     model = LineModel(np.array(segs))
-    (origin, r), far = b._peak_origin(model, att)
+    (origin, r), far = peak_origin(m, model, survey)
     assert far == (origin, r)  # no free range ahead recorded: no origin past the legs
-    r_anchor = b._measure_at(model, np.zeros(2))
+    r_anchor = m.at(model, np.zeros(2))
     world = load_world("paper_fig4")
     assert classify_place(world.segments, truth.x, truth.y) is PlaceKind.PLAIN_HALLWAY
     assert classify_place(model.segments, 0.0, 0.0) is PlaceKind.PLAIN_HALLWAY
@@ -968,54 +982,34 @@ def test_an_origin_off_a_plain_hallway_must_still_pass_the_acceptance_bound() ->
     measure, the origin stays at the anchor. An anchor the model shows at a junction is
     chosen as without the rule."""
     _, segs, legs_done = FIG4_SHORT_OF_MOUTH
-    b = IslandBuilder(BuilderConfig())
+    m = Measures.of(BuilderConfig())
     model = LineModel(np.array(segs))
-    r_anchor = b._measure_at(model, np.zeros(2))
-    att = _Attempt(anchor=Pose2D(0.0, 0.0, 0.0), anchor_truth=None, anchor_cov=np.zeros((3, 3)),
-                   epsilon_m=0.5, bound=2.0 * r_anchor, first=False, legs_done=list(legs_done))
-    (origin, r), _ = b._peak_origin(model, att)
+    r_anchor = m.at(model, np.zeros(2))
+    high = Survey(legs_m=tuple(legs_done), bound=2.0 * r_anchor)
+    (origin, r), _ = peak_origin(m, model, high)
     assert origin == Pose2D(0.0, 0.0, 0.0) and r == r_anchor
     at_mouth = LineModel(model.segments - np.array([1.0, 0.0, 1.0, 0.0]))  # anchored there
     assert classify_place(at_mouth.segments, 0.0, 0.0) is PlaceKind.FEATURE
-    low = _Attempt(anchor=Pose2D(0.0, 0.0, 0.0), anchor_truth=None, anchor_cov=np.zeros((3, 3)),
-                   epsilon_m=0.5, bound=0.0, first=False, legs_done=list(legs_done))
-    off = IslandBuilder(BuilderConfig(origin_feature_radius_m=0.0))
-    assert b._peak_origin(at_mouth, low) == off._peak_origin(at_mouth, low)
+    low = Survey(legs_m=tuple(legs_done), bound=0.0)
+    off = Measures.of(BuilderConfig(origin_feature_radius_m=0.0))
+    assert peak_origin(m, at_mouth, low) == peak_origin(off, at_mouth, low)
 
 
-class _ProbeFails(IslandBuilder):
+def test_an_origin_past_the_legs_that_does_not_localize_falls_back_to_the_legs_peak(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """The look at an origin past the legs does not localize (paper_fig4: an origin moved
-    1.8 m on to a door whose smeared jambs the model over-rated was not localizable)."""
-
-    def _localizes_back(
-        self, model: LineModel, points_robot: np.ndarray, at: Pose2D, turn_rad: float = 0.0
-    ) -> bool:
-        if self.state == "probing":
-            return False
-        return super()._localizes_back(model, points_robot, at, turn_rad)
-
-
-def test_an_origin_past_the_legs_that_does_not_localize_falls_back_to_the_legs_peak() -> None:
+    1.8 m on to a door whose smeared jambs the model over-rated was not localizable): the
+    probe's check (star.probe_verdict's localizes_back) fails."""
     legs_only, _, origin0, _ = _island_at_crossing(0.0)
-    fell, _, origin, run = _island_at_crossing(3.0, _ProbeFails)
+    monkeypatch.setattr(star_module, "localizes_back", lambda *args, **kwargs: False)
+    fell, _, origin, run = _island_at_crossing(3.0)
     assert run.builder.probes == {"kept": 0, "fell_back": 1}
     assert origin.relative_to(origin0).x == pytest.approx(0.0, abs=0.05)  # the legs' peak
     assert np.allclose(fell.model.segments, legs_only.model.segments, atol=0.1)
     back = next(e for e in run.events if e.kind is EventKind.HANDED_BACK)
     rel = back.odom_pose.relative_to(origin)
     assert math.hypot(rel.x, rel.y) < 0.1 and run.robot.collisions == 0
-
-
-class _KeepsStarModel(IslandBuilder):
-    """Remembers the star's own model (in the anchor frame) when the first probe starts."""
-
-    star_model: LineModel | None = None
-
-    def _probe_step(self) -> tuple[float, float]:
-        att = self._attempt
-        if self.star_model is None and att is not None and att.probe is not None:
-            self.star_model = att.probe.model
-        return super()._probe_step()
 
 
 def _look_points(world: World, at: Pose2D, seed: int) -> FloatArray:
@@ -1029,16 +1023,23 @@ def _look_points(world: World, at: Pose2D, seed: int) -> FloatArray:
     )
 
 
-def test_a_kept_probe_adds_its_look_to_the_model() -> None:
+def test_a_kept_probe_adds_its_look_to_the_model(monkeypatch: pytest.MonkeyPatch) -> None:
     """The star saw the crossing from 1.75 m back; the island's model also holds the look
     from the probed origin, so it explains what a robot sees there better than the star's
-    model alone (moved into the island frame)."""
-    island, anchor, origin, run = _island_at_crossing(3.0, _KeepsStarModel)
-    builder = run.builder
-    assert isinstance(builder, _KeepsStarModel) and builder.star_model is not None
-    assert island.origin_truth is not None
+    model alone (moved into the island frame). The star's own model (anchor frame) is the
+    one the first probe's verdict is asked about."""
+    star_models: list[LineModel] = []
+    real = star_module.probe_verdict
+
+    def recording(m: Measures, probe: star_module.Probe, *args: Any) -> object:
+        star_models.append(probe.model)
+        return real(m, probe, *args)
+
+    monkeypatch.setattr(star_module, "probe_verdict", recording)
+    island, anchor, origin, _ = _island_at_crossing(3.0)
+    assert star_models and island.origin_truth is not None
     shift = origin.relative_to(anchor)
-    star = builder.star_model.segments - np.array([shift.x, shift.y] * 2)
+    star = star_models[0].segments - np.array([shift.x, shift.y] * 2)
     look = _look_points(cross_world(), island.origin_truth, seed=3)
     near_star = float(np.mean(point_segment_distance(look, star).min(axis=1) < 0.15))
     near_kept = float(np.mean(
@@ -1073,8 +1074,8 @@ def test_the_probe_look_is_registered_onto_the_model_not_placed_by_odometry(
         return math.degrees(res.pose.theta)
 
     registered = bias_deg()
-    monkeypatch.setattr(IslandBuilder, "_register",
-                        lambda self, model, points, guess: guess)
+    monkeypatch.setattr(star_module, "register_look",
+                        lambda cfg, model, points, guess: guess)
     by_odometry = bias_deg()
     assert abs(registered) < 1.5 and abs(by_odometry) > 3.0, (registered, by_odometry)
 
@@ -1089,22 +1090,22 @@ class _DriftsWhenTurning(IslandBuilder):
 
     def __init__(self, config: BuilderConfig) -> None:
         super().__init__(config)
-        self._exact: Pose2D | None = None
-        self._drifted = Pose2D(0.0, 0.0, 0.0)
-        self._turned_rad = 0.0
+        self.exact: Pose2D | None = None
+        self.drifted = Pose2D(0.0, 0.0, 0.0)
+        self.turned_rad = 0.0
 
     def on_odometry(self, t_s: float, odom_pose: Pose2D, cov3x3: npt.ArrayLike) -> None:
-        if self._exact is None:
-            self._drifted = odom_pose
+        if self.exact is None:
+            self.drifted = odom_pose
         else:
-            d = odom_pose.relative_to(self._exact)
-            self._turned_rad += abs(d.theta)
+            d = odom_pose.relative_to(self.exact)
+            self.turned_rad += abs(d.theta)
             turn = d.theta + self.DRIFT_PER_RAD * abs(d.theta)
-            self._drifted = self._drifted.compose(Pose2D(d.x, d.y, turn))
-        self._exact = odom_pose
+            self.drifted = self.drifted.compose(Pose2D(d.x, d.y, turn))
+        self.exact = odom_pose
         cov = np.array(cov3x3, dtype=np.float64)
-        cov[2, 2] += (self.DRIFT_PER_RAD * self._turned_rad) ** 2
-        super().on_odometry(t_s, self._drifted, cov)
+        cov[2, 2] += (self.DRIFT_PER_RAD * self.turned_rad) ** 2
+        super().on_odometry(t_s, self.drifted, cov)
 
 
 def _model_heading_deg(island: Island) -> float:
@@ -1144,18 +1145,18 @@ def test_a_leg_slid_along_a_hallway_still_registers_its_heading() -> None:
     h = HALF_WIDTH_M
     model = LineModel(np.array([[-6.0, -h, 6.0, -h], [-6.0, h, 6.0, h]]))
     leg = np.concatenate([  # looks along a 1.2 m leg from the anchor, in the anchor frame
-        _from_frame(_look_points(corridor_world(), Pose2D(x, 0.0, 0.0), seed=k), Pose2D(x, 0, 0))
+        from_frame(_look_points(corridor_world(), Pose2D(x, 0.0, 0.0), seed=k), Pose2D(x, 0, 0))
         for k, x in enumerate(np.arange(0.0, 1.21, 0.3))])
-    placed = _from_frame(leg, Pose2D(0.0, 0.0, math.radians(10.0)))  # odometry 10 deg off
-    b = IslandBuilder(BuilderConfig())
-    res = localize(model, placed, Pose2D(0.0, 0.0, 0.0), b.config.localize)
+    placed = from_frame(leg, Pose2D(0.0, 0.0, math.radians(10.0)))  # odometry 10 deg off
+    cfg = BuilderConfig()
+    res = localize(model, placed, Pose2D(0.0, 0.0, 0.0), cfg.localize)
     assert res.settled and not res.converged
-    assert b._register(model, placed, Pose2D(0.0, 0.0, 0.0)) == Pose2D(0.0, 0.0, 0.0)
-    found = b._leg_heading(model, placed, math.radians(15.0))
+    assert register_look(cfg, model, placed, Pose2D(0.0, 0.0, 0.0)) == Pose2D(0.0, 0.0, 0.0)
+    found = leg_heading(cfg, model, placed, math.radians(15.0))
     assert found is not None and math.degrees(found) == pytest.approx(-10.0, abs=0.5)
-    assert b._leg_heading(model, placed, math.radians(8.0)) is None
-    across = _from_frame(leg, Pose2D(0.0, 0.0, math.radians(90.0)))  # the walls across
-    assert b._leg_heading(model, across, math.radians(15.0)) is None
+    assert leg_heading(cfg, model, placed, math.radians(8.0)) is None
+    across = from_frame(leg, Pose2D(0.0, 0.0, math.radians(90.0)))  # the walls across
+    assert leg_heading(cfg, model, across, math.radians(15.0)) is None
 
 
 @pytest.mark.parametrize(("climbs", "feature_radius_m"), [(1, 0.0), (0, 3.0)])
@@ -1215,12 +1216,9 @@ def test_bad_revisit_config_names_the_field() -> None:
 ])
 def test_attempts_wait_until_the_follower_has_settled_after_a_turn(record: str,
                                                                    settled: bool) -> None:
-    b = IslandBuilder(BuilderConfig())
-    b.set_strategy(ControlStrategy.parse(record))
-    assert b._follower_settled() is settled
-    off = IslandBuilder(BuilderConfig(settled_go_m=0.0))
-    off.set_strategy(ControlStrategy.parse(record))
-    assert off._follower_settled()
+    strategy = ControlStrategy.parse(record)
+    assert follower_settled(strategy, BuilderConfig().settled_go_m) is settled
+    assert follower_settled(strategy, BuilderConfig(settled_go_m=0.0).settled_go_m)
 
 
 class _TurnsRoundAtTheEnd(IslandBuilder):
@@ -1258,7 +1256,7 @@ def test_the_probe_check_refuses_a_model_that_fits_turned_as_well() -> None:
     """A round room (a 72-gon, 2 m radius) pins the position but not the heading: the new-island
     check passes on position alone; with guesses turned +-8 deg (the probe's check) the fits
     end turned with them and disagree, so it refuses. A square room passes both."""
-    b = IslandBuilder(BuilderConfig())
+    cfg = BuilderConfig()
 
     def room(corners: int, radius_m: float) -> tuple[LineModel, np.ndarray]:
         a = np.arange(corners + 1) * 2.0 * math.pi / corners + math.pi / corners
@@ -1271,7 +1269,7 @@ def test_the_probe_check_refuses_a_model_that_fits_turned_as_well() -> None:
     turn = math.radians(BuilderConfig().probe_turn_deg)
     round_model, round_pts = room(72, 2.0)
     at = Pose2D(0.0, 0.0, 0.0)
-    assert b._localizes_back(round_model, round_pts, at)
-    assert not b._localizes_back(round_model, round_pts, at, turn)
+    assert localizes_back(cfg, round_model, round_pts, at)
+    assert not localizes_back(cfg, round_model, round_pts, at, turn)
     square_model, square_pts = room(4, 2.0)
-    assert b._localizes_back(square_model, square_pts, at, turn)
+    assert localizes_back(cfg, square_model, square_pts, at, turn)

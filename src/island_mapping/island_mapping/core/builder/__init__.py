@@ -1,0 +1,82 @@
+"""The island builder: where to build islands of reliability (paper sections 5 and 8.2, eq. 3).
+
+Pure decision logic (numpy only, no ROS). Modules, each one job:
+
+- `config`: BuilderConfig, StarConfig, RevisitConfig (the single source of defaults);
+- `events`: what the builder tells its driver (commands, events, their JSON);
+- `epsilon`: eq. 3 (RelativeCovariance, eq3_bound, normalized_measures, Measures);
+- `star`: the star's decisions as functions (leg registration, the origin's peak, probes);
+- `checks`: the localization check and registrations onto a model;
+- `recognition`: the Recognizer of known islands (revisits) and its link graph (`links`);
+- `follow`: when an attempt may start while the follower drives;
+- `motion`: turns, straight drives, docking and looks (no decisions);
+- `diagnostics`: counts, refusals, probes;
+- `machine`: IslandBuilder, the state machine that wires them;
+- `stamps`: StampSync, scan/odometry stamp pairing for the node.
+"""
+
+from island_mapping.core.builder.checks import leg_heading, localizes_back, register_look
+from island_mapping.core.builder.config import (
+    BuilderConfig,
+    BuilderError,
+    RevisitConfig,
+    StarConfig,
+)
+from island_mapping.core.builder.diagnostics import Diagnostics, ProbeOutcome, Refusal
+from island_mapping.core.builder.epsilon import (
+    CoreMeasures,
+    EvaluateFn,
+    FitFn,
+    Measures,
+    RelativeCovariance,
+    eq3_bound,
+    normalized_measures,
+)
+from island_mapping.core.builder.events import (
+    BuilderCommand,
+    BuilderEvent,
+    CommandMode,
+    DismissReason,
+    EventKind,
+    event_to_dict,
+)
+from island_mapping.core.builder.follow import follower_settled, follower_turning
+from island_mapping.core.builder.machine import IslandBuilder
+from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
+from island_mapping.core.builder.stamps import StampSync
+from island_mapping.core.builder.star import Survey, peak_origin
+
+__all__ = [
+    "BuilderCommand",
+    "BuilderConfig",
+    "BuilderError",
+    "BuilderEvent",
+    "CommandMode",
+    "CoreMeasures",
+    "Diagnostics",
+    "DismissReason",
+    "EvaluateFn",
+    "EventKind",
+    "FitFn",
+    "IslandBuilder",
+    "Measures",
+    "PoseSnapshot",
+    "ProbeOutcome",
+    "Recognition",
+    "Recognizer",
+    "Refusal",
+    "RelativeCovariance",
+    "RevisitConfig",
+    "StampSync",
+    "StarConfig",
+    "Survey",
+    "eq3_bound",
+    "event_to_dict",
+    "follower_settled",
+    "follower_turning",
+    "leg_heading",
+    "localizes_back",
+    "normalized_measures",
+    "peak_origin",
+    "register_look",
+]

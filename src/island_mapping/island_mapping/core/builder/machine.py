@@ -1,0 +1,489 @@
+"""The island builder's state machine: where to build islands of reliability (paper sections
+5 and 8.2, eq. 3), wiring the decisions of the other modules of this package.
+
+States: WAITING (no odometry or scan yet) -> the first island's star, or FOLLOWING (the hall
+follower drives; `follow` decides when to attempt, `recognition` whether the place is a known
+island) -> STAR (the four legs; `star` registers them and decides accept or dismiss) ->
+PROBING (an origin past the legs, checked on the spot) -> RETURNING (onto the origin, facing
+theta 0) -> FOLLOWING; or, on a recognised island, DOCKING (onto its origin, look around,
+re-localize) -> FOLLOWING. `command(t)` is called once per scan and returns FOLLOW or DRIVE(v, w)
+and the events since the last call. docs/builder.md describes the decisions.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import StrEnum
+
+import numpy as np
+import numpy.typing as npt
+from island_msgs_py.types import (
+    ControlStrategy,
+    Edge,
+    FloatArray,
+    Island,
+    LineModel,
+    Pose2D,
+)
+
+from island_mapping.core.builder import motion, star
+from island_mapping.core.builder.checks import localizes_back
+from island_mapping.core.builder.config import BuilderConfig, BuilderError
+from island_mapping.core.builder.diagnostics import Diagnostics, ProbeOutcome
+from island_mapping.core.builder.docking import Dock, dock_step
+from island_mapping.core.builder.epsilon import (
+    EvaluateFn,
+    FitFn,
+    Measures,
+    OdometryTrack,
+    eq3_bound,
+)
+from island_mapping.core.builder.events import (
+    BuilderCommand,
+    BuilderEvent,
+    CommandMode,
+    DismissReason,
+    EventKind,
+)
+from island_mapping.core.builder.follow import (
+    FollowGate,
+    Following,
+    FollowStep,
+    ScanHistory,
+    follow_step,
+    straight_behind_m,
+)
+from island_mapping.core.builder.geometry import concat, scan_points, to_frame
+from island_mapping.core.builder.ledger import Ledger
+from island_mapping.core.builder.motion import STOP, LookPhase, Twist
+from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
+from island_mapping.core.builder.star import Attempt
+
+
+class _State(StrEnum):
+    WAITING = "waiting"  # no odometry/scan yet
+    FOLLOWING = "following"
+    STAR = "star"
+    RETURNING = "returning"  # back to the origin, facing theta 0, then hand back
+    DOCKING = "docking"  # onto a recognised island's origin, then hand back
+    PROBING = "probing"  # to an origin past the star's legs: look around there, verify it
+
+
+class IslandBuilder:
+    """The island builder state machine (see the module docstring).
+
+    Call `on_odometry` for every odometry message, `on_scan` for every scan, `set_strategy`
+    whenever the hall follower publishes its executed strategy, `on_ground_truth` (evaluation
+    only: stamped on islands as origin_truth), and `command(t)` once per scan. `fit` and
+    `evaluate` replace the line fit and the model evaluation (tests).
+    """
+
+    def __init__(
+        self, config: BuilderConfig | None = None, fit: FitFn | None = None,
+        evaluate: EvaluateFn | None = None,
+    ) -> None:
+        self.config = config if config is not None else BuilderConfig()
+        self.measures = Measures.of(self.config, fit, evaluate)
+        self.diagnostics = Diagnostics()
+        self.recognizer = Recognizer(self.config, self.diagnostics)
+        self._state = _State.WAITING
+        self._track = OdometryTrack()
+        self._truth: Pose2D | None = None
+        self._last_scan: tuple[FloatArray, FloatArray] | None = None
+        self._path_m = 0.0  # odometric path length while following [m]
+        self._history = ScanHistory()
+        self._gate = FollowGate()
+        self._strategy = ControlStrategy(())
+        self._attempt: Attempt | None = None
+        self._dock: Dock | None = None
+        self._events: list[BuilderEvent] = []
+        self._t = 0.0
+        self.ledger = Ledger(self.recognizer)
+
+    # ----- inputs -----
+
+    def on_odometry(self, t_s: float, odom_pose: Pose2D, cov3x3: npt.ArrayLike) -> None:
+        """Latest odometry pose and its 3x3 covariance (x, y, theta) [m, rad]."""
+        cov = _checked_cov(t_s, cov3x3)
+        moved = self._track.update(odom_pose, cov)
+        if self._state is _State.FOLLOWING:
+            self._path_m += moved
+        self._t = max(self._t, t_s)
+
+    def on_ground_truth(self, pose: Pose2D) -> None:
+        """The simulator's true pose, stored on islands as origin_truth for evaluation only."""
+        self._truth = pose
+
+    def set_strategy(self, strategy: ControlStrategy) -> None:
+        """The hall follower's strategy executed since its last reset (at the last island)."""
+        self._strategy = strategy
+
+    def on_scan(self, t_s: float, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike) -> None:
+        """A sonar scan: ranges from the robot centre [m] (inf = no echo) at robot-frame angles."""
+        r, a = _checked_scan(t_s, ranges_m, angles_rad)
+        self._t = max(self._t, t_s)
+        self._last_scan = (r, a)
+        if self._odom is None:
+            return
+        pts = scan_points(r, a, self._odom)
+        near = r <= self.config.revisit.max_range_m  # far sonar echoes are wide cones
+        near_pts = scan_points(r[near], a[near], self._odom)  # for recognising known islands
+        if self._state is _State.STAR and self._attempt is not None:
+            self._attempt.add_scan(pts, near_pts, self._odom, self.config.centre_radius_m)
+        look = self._look()
+        if look is not None:
+            if look.phase is LookPhase.LOOK:
+                look.points.append(pts)
+            return
+        self._history.add(self._path_m, pts, near_pts, self._state is _State.FOLLOWING,
+                          self.config)
+
+    # ----- queries -----
+
+    @property
+    def _odom(self) -> Pose2D | None:
+        return self._track.pose
+
+    @property
+    def state(self) -> str:
+        return self._state.value
+
+    @property
+    def epsilon_m(self) -> float:
+        """The current epsilon [m] (see `RelativeCovariance`)."""
+        return self._track.rel.epsilon_m
+
+    @property
+    def last_island(self) -> Island | None:
+        return self.ledger.last_island
+
+    @property
+    def islands(self) -> list[Island]:
+        """The islands built, in id order (the builder's own list)."""
+        return self.ledger.islands
+
+    @property
+    def edges(self) -> list[Edge]:
+        """The edges added (a cheaper revisit edge replaces its predecessor)."""
+        return self.ledger.edges
+
+    @property
+    def island_origins_odom(self) -> dict[int, Pose2D]:
+        """Each island's origin in the odometry frame when it was built."""
+        return self.ledger.island_origins_odom
+
+    @property
+    def path_m(self) -> float:
+        """Odometric path length followed (the hall follower driving) [m]."""
+        return self._path_m
+
+    @property
+    def counts(self) -> dict[EventKind, int]:
+        """Events emitted, by kind."""
+        return self.diagnostics.counts
+
+    @property
+    def revisit_refusals(self) -> dict[str, int]:
+        """Why revisit hypotheses were refused: reason -> count."""
+        return self.diagnostics.revisit_refusals
+
+    @property
+    def probes(self) -> dict[str, int]:
+        """Origins past the star's legs: checked on the spot and kept, or fallen back from."""
+        return self.diagnostics.probes
+
+    def snapshot(self) -> PoseSnapshot:
+        """The robot's pose, covariance and error since the last island, for recognition."""
+        track, last = self._track, self.ledger.last_island
+        assert track.pose is not None
+        return PoseSnapshot(track.pose, track.cov, self.epsilon_m, track.rel.heading_sigma_rad,
+                            None if last is None else last.id,
+                            self._path_m - self.ledger.start_path_m)
+
+    def recognize(self) -> Recognition | None:
+        """Search the known islands near the odometric pose for the recent scan points (the
+        last revisit.history_m of path, echoes within revisit.max_range_m); see
+        `Recognizer.recognize`."""
+        if self._odom is None:
+            return None
+        return self.recognizer.recognize_recent(
+            self._history.revisit_points(), self._odom, self.snapshot(), self.islands)
+
+    # ----- the decision step -----
+
+    def command(self, t_s: float) -> BuilderCommand:
+        """What to do now (call once per scan) and the events since the last call."""
+        self._t = max(self._t, t_s)
+        v, w = STOP
+        if self._state is _State.WAITING and self._odom is not None and (
+            self._last_scan is not None
+        ):
+            if self.config.build_first_island:
+                self._start_attempt(first=True)
+            else:
+                self._track.rel.reset()
+                self._state = _State.FOLLOWING
+        if self._state is _State.FOLLOWING:
+            self._maybe_attempt()
+        if self._state is _State.STAR:
+            v, w = self._star_step()
+        if self._state is _State.PROBING:
+            v, w = self._probe_step()
+        if self._state is _State.RETURNING:
+            v, w = self._return_step()
+        if self._state is _State.DOCKING:
+            v, w = self._dock_step()
+        mode = CommandMode.FOLLOW if self._state is _State.FOLLOWING else CommandMode.DRIVE
+        events, self._events = tuple(self._events), []
+        return BuilderCommand(mode, v, w, events)
+
+    def _emit(self, kind: EventKind, epsilon_m: float | None = None, **kw: object) -> None:
+        assert self._odom is not None
+        self.diagnostics.counts[kind] += 1
+        eps = self.epsilon_m if epsilon_m is None else epsilon_m
+        self._events.append(
+            BuilderEvent(kind, self._t, self._odom, eps, **kw)  # type: ignore[arg-type]
+        )
+
+    def _maybe_attempt(self) -> None:
+        assert self._odom is not None
+        odom, cfg = self._odom, self.config
+        now = Following(self.epsilon_m, self._t, self._path_m, self._strategy,
+                        self.ledger.near_last_island(odom, cfg.vicinity_m))
+        step, quick = follow_step(
+            self._gate, cfg, now,
+            lambda: self.measures.of_points(concat(self._history.quick_points()),
+                                            np.array([odom.x, odom.y]))[1],
+            self._try_revisit)
+        if step is FollowStep.FAIL_AT_ONCE:
+            self._emit(EventKind.ATTEMPT_FAILED_AT_ONCE, anchor_odom=odom, measure=quick,
+                       bound=eq3_bound(cfg, now.epsilon_m))
+        elif step is FollowStep.ATTEMPT:
+            self._start_attempt(first=False)
+
+    def _start_attempt(self, first: bool) -> None:
+        assert self._odom is not None and self._last_scan is not None
+        eps = self.epsilon_m
+        bound = eq3_bound(self.config, eps) if not first else self.config.first_island_min_measure
+        self._attempt = Attempt.begin(
+            self._odom, self._truth, self._track.cov, eps, bound, first, self._ahead_free_m(),
+            straight_behind_m(self._strategy),
+            to_frame(scan_points(*self._last_scan, self._odom), self._odom))
+        self._track.anchor_star()
+        self._state = _State.STAR
+        self._emit(EventKind.ATTEMPT_STARTED, anchor_odom=self._odom, bound=bound)
+
+    def _pose_in_anchor(self) -> Pose2D:
+        assert self._odom is not None and self._attempt is not None
+        return self._odom.relative_to(self._attempt.anchor)
+
+    def _ahead_free_m(self) -> float:
+        """Nearest echo within the ahead cone of the latest scan (from the robot centre) [m]."""
+        if self._last_scan is None:
+            return 0.0
+        return motion.ahead_free_m(*self._last_scan, self.config.star)
+
+    # ----- the star -----
+
+    def _star_step(self) -> Twist:
+        att = self._attempt
+        assert att is not None and self._odom is not None
+        var = None if self._track.star is None else float(self._track.star.p[2, 2])
+        twist, verdict = star.star_step(self.measures, att, self._odom, self._ahead_free_m(), var)
+        if verdict is star.Verdict.ACCEPT:
+            self._accept()
+        elif verdict is not star.Verdict.NONE:
+            self._dismiss(partial=verdict is star.Verdict.DISMISS_PARTIAL)
+        return twist
+
+    def _accept(self) -> None:
+        att, cfg = self._attempt, self.config
+        assert att is not None
+        if att.first and att.best <= cfg.first_island_min_measure and att.bound > 0:
+            self._dismiss(partial=False)
+            return
+        if not att.first:
+            rec = None if self._odom is None else self.recognizer.recognize_star(
+                att.near_points, att.anchor, self._odom, self.snapshot(), self.islands)
+            if rec is not None:  # the star is at a known island: a revisit, not a new one
+                assert self._odom is not None
+                att.outcome = EventKind.ISLAND_REVISITED
+                self._attempt, self._track.star = None, None
+                end = rec.pose.compose(self._odom.relative_to(att.anchor).inverse())
+                self._revisit(rec, legs_m=tuple(att.legs_done), strategy_end=end)
+                return
+        pts = concat(att.points)
+        model = self.measures.fit(pts) if pts.shape[0] >= 2 else LineModel()
+        if cfg.verify_localization and not att.first and not localizes_back(
+            cfg, model, concat(att.centre_points), Pose2D(0.0, 0.0, 0.0)
+        ):
+            self._dismiss(partial=False, reason=DismissReason.LOCALIZATION_CHECK)
+            return
+        origin = star.choose_origin(self.measures, model, att, self._pose_in_anchor())
+        if isinstance(origin, star.Probe):  # past the driven legs: check it on the spot
+            att.probe = origin
+            self._state = _State.PROBING
+            return
+        self._accept_at(model, *origin)
+
+    def _accept_at(self, model: LineModel, shift: Pose2D, r_peak: float) -> None:
+        """Accept the attempt's island with its origin at `shift` in the anchor frame, where
+        its model's normalized measure is r_peak."""
+        att, book = self._attempt, self.ledger
+        assert att is not None
+        if shift.x != 0.0 or shift.y != 0.0:
+            model = LineModel(model.segments - np.array([shift.x, shift.y] * 2))
+            att.best = max(att.best, r_peak)
+        origin = att.anchor.compose(shift)
+        island = Island(
+            id=len(book.islands), model=model, model_type=att.best_type, r=float(att.best),
+            built_at_s=self._t,
+            origin_truth=None if att.anchor_truth is None else att.anchor_truth.compose(shift),
+        )
+        edge = book.edge_to(island.id, self._strategy, self._path_m,
+                            Pose2D(-shift.x, -shift.y, 0.0), att.epsilon_m)
+        book.add_island(island, origin, att.anchor_cov, edge, att.epsilon_m,
+                        self._track.rel.heading_sigma_rad)
+        if self._track.star is not None:  # epsilon restarts from the island origin
+            self._track.rel.p = self._track.star.p.copy()
+        att.outcome = EventKind.ISLAND_ACCEPTED
+        att.anchor = origin  # the robot returns to the island origin before it is handed back
+        self._emit(EventKind.ISLAND_ACCEPTED, epsilon_m=att.epsilon_m, anchor_odom=origin,
+                   measure=att.best, bound=att.bound, legs_m=tuple(att.legs_done),
+                   island=island, edge=edge)
+        self._state = _State.RETURNING
+
+    def _probe_step(self) -> Twist:
+        """Drive to the origin past the legs, face the anchor's heading, look around (a full
+        circle), then accept the island there if the look localizes in the model from offset
+        guesses (the new-island check), else at the best origin along the driven legs."""
+        att = self._attempt
+        assert att is not None and att.probe is not None and self._odom is not None
+        pr, sc = att.probe, self.config.star
+        rel = self._odom.relative_to(att.anchor.compose(pr.shift))  # robot in candidate frame
+        cmd = motion.look_around(pr, rel, math.radians(sc.heading_tol_deg), self._odom.theta,
+                                 self._ahead_free_m(), sc)
+        if cmd is not None:
+            return cmd
+        there = math.hypot(rel.x, rel.y) <= self.config.revisit.path_clearance_m
+        verdict = star.probe_verdict(self.measures, pr, concat(pr.points), self._odom,
+                                     att.anchor, att.points, there)
+        self.diagnostics.probed(ProbeOutcome.KEPT if verdict.kept else ProbeOutcome.FELL_BACK)
+        if verdict.kept:
+            att.points.append(verdict.look)
+        att.probe = verdict.next  # the completed model peaks further on: probe there too
+        if verdict.next is None:
+            self._accept_at(verdict.model, verdict.shift, verdict.measure)
+        return STOP
+
+    def _dismiss(self, partial: bool, reason: DismissReason | None = None) -> None:
+        att = self._attempt
+        assert att is not None
+        att.outcome = EventKind.ATTEMPT_DISMISSED
+        self._gate.retry_after(self._path_m, self.config.retry_distance_m)
+        self._emit(EventKind.ATTEMPT_DISMISSED, epsilon_m=att.epsilon_m, anchor_odom=att.anchor,
+                   measure=att.best, bound=att.bound, legs_m=tuple(att.legs_done),
+                   partial=partial,
+                   reason=reason if reason is not None else DismissReason.MEASURE)
+        self._state = _State.RETURNING
+
+    def _return_step(self) -> Twist:
+        att = self._attempt
+        assert att is not None
+        cmd = motion.return_to_centre(self._pose_in_anchor(), self.config.star)
+        if cmd is not None:
+            return cmd
+        accepted = att.outcome is EventKind.ISLAND_ACCEPTED
+        self._hand_back(att.anchor, self.ledger.last_island if accepted else None)
+        self._attempt = None
+        self._track.star = None
+        return STOP
+
+    def _hand_back(self, origin: Pose2D, island: Island | None) -> None:
+        """Back to the follower at `origin` (odometry); at `island`'s origin its record
+        restarts there."""
+        self.ledger.handed_back(island, self._path_m)
+        if island is not None:
+            self._strategy = ControlStrategy(())
+        self._emit(EventKind.HANDED_BACK, anchor_odom=origin,
+                   accepted_island_id=None if island is None else island.id)
+        self._history.quick.clear()
+        self._state = _State.FOLLOWING
+
+    # ----- revisits -----
+
+    def _try_revisit(self) -> bool:
+        """Recognise a known island here; on success the robot docks onto its origin."""
+        rec = self.recognize()
+        if rec is None:
+            return False
+        self._revisit(rec)
+        return True
+
+    def _revisit(self, rec: Recognition, legs_m: tuple[tuple[float, float], ...] = (),
+                 strategy_end: Pose2D | None = None) -> None:
+        """Link the previous island to the recognised one and dock onto its origin.
+
+        strategy_end: where the follower's strategy ended, in the island frame (default: the
+        robot now); the edge's last steps drive from there to the origin. After a star the
+        robot is back at the anchor but faces its last leg, so that must be the anchor pose.
+        """
+        assert self._odom is not None
+        island = self.ledger.island(rec.island_id)
+        origin_odom = self._odom.compose(rec.pose.inverse())  # the island origin, odometry
+        edge = self.ledger.revisit(
+            island.id, self._strategy, self._path_m,
+            rec.pose if strategy_end is None else strategy_end, self.epsilon_m,
+            self.config.revisit.strategy_min_go_m, origin_odom, self._track.rel.heading_sigma_rad)
+        self._emit(EventKind.ISLAND_REVISITED, anchor_odom=origin_odom,
+                   revisited_island_id=island.id, island_pose=rec.pose,
+                   residual_m=rec.residual_m, edge=edge, legs_m=legs_m)
+        self._dock = Dock(island=island, target=origin_odom,
+                          looks_left=self.config.revisit.dock_looks)
+        self._state = _State.DOCKING
+
+    def _dock_step(self) -> Twist:
+        """Drive onto the recognised origin, face its heading, look around and re-localize;
+        then hand back there: the robot knows where it is (epsilon 0)."""
+        dock = self._dock
+        assert dock is not None and self._odom is not None
+        cmd = dock_step(dock, self._odom, self._ahead_free_m(), self.config)
+        if cmd is not None:
+            return cmd
+        self._track.rel.reset()
+        self.recognizer.remember(dock.island.id, dock.target, self._track.cov.copy())
+        self._gate.retry_at_path_m = self._path_m
+        self._hand_back(dock.target, dock.island)
+        self._dock = None
+        self._history.revisit.clear()
+        return STOP
+
+    def _look(self) -> motion.Look | None:
+        """The dock or probe under way, if the state is one of theirs."""
+        if self._state is _State.DOCKING:
+            return self._dock
+        if self._state is _State.PROBING and self._attempt is not None:
+            return self._attempt.probe
+        return None
+
+
+def _checked_cov(t_s: float, cov3x3: npt.ArrayLike) -> FloatArray:
+    cov = np.asarray(cov3x3, dtype=np.float64)
+    if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+        raise BuilderError(
+            f"on_odometry: covariance must be a finite 3x3 matrix, got shape {cov.shape}"
+        )
+    if not math.isfinite(t_s):
+        raise BuilderError(f"on_odometry: time must be finite, got {t_s}")
+    return cov
+
+
+def _checked_scan(t_s: float, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike
+                  ) -> tuple[FloatArray, FloatArray]:
+    r = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
+    a = np.asarray(angles_rad, dtype=np.float64).reshape(-1)
+    if r.shape != a.shape:
+        raise BuilderError(f"on_scan: {r.shape[0]} ranges but {a.shape[0]} angles")
+    if not math.isfinite(t_s):
+        raise BuilderError(f"on_scan: time must be finite, got {t_s}")
+    return r, a

@@ -1,0 +1,374 @@
+"""Recognising an island the robot already built (revisits), from an explicit snapshot of the
+robot's odometric pose and covariance.
+
+`Recognizer` remembers where each island's origin was last known in the odometry frame (and the
+odometry's covariance then) and the links measured between islands (`LinkGraph`). Given scan
+points and a `PoseSnapshot`, it searches every candidate island around its odometric estimate
+(a grid of guesses scored by inliers, the best refined by localization), refuses fits that are
+weak, ambiguous, out of the search window or fail the new-island localization check, and
+refuses the whole recognition when another island that may be here fits too (a look-alike).
+Refusals are counted in `Diagnostics.revisit_refusals`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from island_msgs_py.types import FloatArray, Island, Pose2D, wrap_angle
+
+from island_mapping.core.builder.checks import localizes_back
+from island_mapping.core.builder.config import BuilderConfig
+from island_mapping.core.builder.diagnostics import Diagnostics, Refusal
+from island_mapping.core.builder.geometry import drive_clear, from_frame, to_frame
+from island_mapping.core.builder.links import Link, LinkGraph
+from island_mapping.core.lines import point_segment_distance, thin_evenly
+from island_mapping.core.localize import localize
+
+# Guesses scored per batch of the grid search (bounds the (guesses x points x walls) array).
+_GUESSES_PER_BATCH = 40
+
+
+def _ignore(_reason: Refusal) -> None:
+    """A refusal that is not counted."""
+
+
+@dataclass(frozen=True)
+class Recognition:
+    """A known island found in the scan points: the robot's pose in its frame."""
+
+    island_id: int
+    pose: Pose2D  # the robot in the island frame [m, rad]
+    residual_m: float
+    inlier_fraction: float
+
+
+@dataclass(frozen=True)
+class PoseSnapshot:
+    """The robot's state a recognition reasons from.
+
+    odom: odometric pose [m, rad]; odom_cov: the odometry's 3x3 covariance (the drift since
+    an island's origin was last known grows from it); epsilon_m and heading_sigma_rad: the
+    error since the last island's origin (eq. 3); last_island_id: the island left last (None:
+    none yet); path_since_island_m: odometric path followed since leaving it [m].
+    """
+
+    odom: Pose2D
+    odom_cov: FloatArray
+    epsilon_m: float
+    heading_sigma_rad: float
+    last_island_id: int | None
+    path_since_island_m: float
+
+
+@dataclass(frozen=True)
+class _Candidate:
+    island: Island
+    origin: Pose2D  # the island origin in the odometry frame (estimated)
+    sigma_m: float
+    sigma_rad: float
+
+
+@dataclass(frozen=True)
+class _Window:
+    """A search around an estimate: radius [m], heading half-width [rad], grid step [m], and
+    the largest residual accepted [m]."""
+
+    radius_m: float
+    max_dth_rad: float
+    step_m: float
+    max_residual_m: float
+
+
+class Recognizer:
+    """Known island origins, the links between them, and the search for revisits."""
+
+    def __init__(self, config: BuilderConfig, diagnostics: Diagnostics | None = None) -> None:
+        self.config = config
+        self.diagnostics = diagnostics if diagnostics is not None else Diagnostics()
+        self._known: dict[int, tuple[Pose2D, FloatArray]] = {}
+        self.links = LinkGraph()
+
+    # ----- what is known -----
+
+    def remember(self, island_id: int, origin_odom: Pose2D, odom_cov: FloatArray) -> None:
+        """Island island_id's origin is at origin_odom in the odometry frame now, with the
+        odometry's covariance odom_cov (3x3)."""
+        self._known[island_id] = (origin_odom, odom_cov)
+
+    def known(self, island_id: int) -> tuple[Pose2D, FloatArray] | None:
+        """(origin in the odometry frame, odometry covariance then) as last known, or None."""
+        return self._known.get(island_id)
+
+    @property
+    def known_ids(self) -> list[int]:
+        return sorted(self._known)
+
+    def link(self, a: int, b: int, origin_b_odom: Pose2D, sigma_m: float,
+             sigma_rad: float) -> None:
+        """Remember where b's origin lies in a's frame (the odometry since a's origin), with
+        position and heading sigmas; a must be known."""
+        t_ab = origin_b_odom.relative_to(self._known[a][0])
+        self.links.add(a, b, Link(t_ab, sigma_m, sigma_rad))
+
+    # ----- the search -----
+
+    def recognize_recent(
+        self, recent_odom: Sequence[FloatArray], odom: Pose2D, snap: PoseSnapshot,
+        islands: Sequence[Island],
+    ) -> Recognition | None:
+        """Recognition from the points seen while following (odometry frame, the last
+        revisit.history_m of path), thinned to max_points, at the odometric pose `odom`."""
+        rc = self.config.revisit
+        if not rc.enabled or not self._known or not recent_odom:
+            return None
+        pts_odom = np.concatenate(recent_odom, axis=0)
+        if pts_odom.shape[0] < rc.min_points:
+            return None
+        pts = to_frame(thin_evenly(pts_odom, rc.max_points), odom)
+        return self.recognize(pts, odom, snap, islands)
+
+    def recognize_star(
+        self, near_points: Sequence[FloatArray], anchor: Pose2D, odom: Pose2D,
+        snap: PoseSnapshot, islands: Sequence[Island],
+    ) -> Recognition | None:
+        """Recognition from a star's echoes (`near_points`, anchor frame, thinned to
+        star_max_points) around its anchor (odometry); the pose is the robot's at `odom`."""
+        rc = self.config.revisit
+        if not (rc.enabled and rc.at_star) or not self._known or not near_points:
+            return None
+        pts = np.concatenate(near_points, axis=0)
+        if pts.shape[0] < rc.min_points:
+            return None
+        pts = thin_evenly(pts, rc.star_max_points)
+        rec = self.recognize(pts, anchor, snap, islands, star=True)
+        if rec is None:
+            return None
+        now = rec.pose.compose(odom.relative_to(anchor))
+        return Recognition(rec.island_id, now, rec.residual_m, rec.inlier_fraction)
+
+    def recognize(
+        self, points: FloatArray, at: Pose2D, snap: PoseSnapshot, islands: Sequence[Island],
+        star: bool = False,
+    ) -> Recognition | None:
+        """Search the known islands for robot-frame points `points` [m] seen from odometric
+        pose `at`; the recognition's pose is `at` in the island frame.
+
+        Candidates: islands whose origin could be within `max_dock_m` of the robot given the
+        search radius (search_sigmas sigmas of the estimate's position sigma). Per candidate,
+        guesses on a grid around the odometric estimate (and headings within search_sigmas
+        heading sigmas, at most search_max_deg) are scored by the fraction of points within
+        inlier_m of the model; the best few distinct ones are refined by localization.
+        Accepted: converged, RMS residual <= max_residual_m, constrained along every axis,
+        inlier fraction >= min_inlier_fraction, within the search window, unambiguous, the
+        origin within max_dock_m over a straight path clear of the model's walls, and the
+        new-island localization check from there. The smallest residual wins, unless another
+        known island that may be here (rival_sigmas) fits the points too. star=True: the points
+        of a star, searched over star_search_sigmas within the star_search_max_m / _deg caps on
+        a grid of at least radius / star_search_cells, residual up to star_max_residual_m.
+        """
+        rc = self.config.revisit
+        best: Recognition | None = None
+        candidates = list(self._candidates(snap, islands))
+        for cand in candidates:
+            est = at.relative_to(cand.origin)  # the robot in the island frame, by odometry
+            win = self._window(cand, star)
+            if math.hypot(est.x, est.y) > win.radius_m + rc.max_dock_m:
+                continue
+            max_m, max_deg = (
+                (rc.star_search_max_m, rc.star_search_max_deg)
+                if star
+                else (rc.search_max_m, rc.search_max_deg)
+            )
+            if win.radius_m > max_m or win.max_dth_rad > math.radians(max_deg):
+                # The search could not cover where the island may be: a match inside it
+                # could be a look-alike place.
+                self.diagnostics.refuse(Refusal.DRIFT_TOO_LARGE)
+                continue
+            found = self._search(cand.island, points, est, win)
+            if found is not None and (best is None or found.residual_m < best.residual_m):
+                best = found
+        if best is not None and self._rival_fits(candidates, points, at, best.island_id, star):
+            self.diagnostics.refuse(Refusal.LOOK_ALIKE)
+            return None
+        return best
+
+    def estimates(self, island_id: int, snap: PoseSnapshot) -> list[tuple[Pose2D, float, float]]:
+        """Where island island_id's origin may be in the odometry frame: (pose, position sigma
+        [m], heading sigma [rad]), from its last known odometric pose (the odometry's drift
+        since) and, when links join it to the last island, through the chain of links with the
+        smallest summed sigma (epsilon plus the chain's error)."""
+        origin, cov0 = self._known[island_id]
+        grow = snap.odom_cov - cov0
+        w_xy = np.linalg.eigvalsh(0.5 * (grow[:2, :2] + grow[:2, :2].T))
+        out = [
+            (
+                origin,
+                max(snap.epsilon_m, math.sqrt(max(float(w_xy[-1]), 0.0))),
+                math.sqrt(max(float(grow[2, 2]), 0.0)),
+            )
+        ]
+        last = snap.last_island_id
+        if last is not None and last in self._known and last != island_id:
+            chain = self.links.chain(last, island_id)
+            if chain is not None:
+                base = self._known[last][0]
+                sig_rel_th = snap.heading_sigma_rad
+                # The robot's own heading error since the last island turns the whole chain.
+                reach = math.hypot(chain.pose.x, chain.pose.y)
+                out.append((base.compose(chain.pose),
+                            snap.epsilon_m + chain.sigma_m + sig_rel_th * reach,
+                            sig_rel_th + chain.sigma_rad))
+        return out
+
+    def _candidates(self, snap: PoseSnapshot, islands: Sequence[Island]) -> Iterator[_Candidate]:
+        """Known islands a recognition may match, with their best odometric origin estimate
+        and its sigmas: not the island just left."""
+        by_id = {i.id: i for i in islands}
+        just_left = snap.path_since_island_m < self.config.revisit.min_loop_m
+        for iid in sorted(self._known):
+            island = by_id.get(iid)
+            if island is None or len(island.model) == 0:
+                continue
+            if iid == snap.last_island_id and just_left:
+                continue
+            origin, sig_m, sig_th = min(self.estimates(iid, snap), key=lambda e: e[1])
+            yield _Candidate(island, origin, sig_m, sig_th)
+
+    def _window(self, cand: _Candidate, star: bool) -> _Window:
+        rc = self.config.revisit
+        sigmas = rc.star_search_sigmas if star else rc.search_sigmas
+        radius = max(sigmas * cand.sigma_m, rc.search_min_m)
+        step = max(rc.search_step_m, radius / rc.star_search_cells) if star else rc.search_step_m
+        max_res = rc.star_max_residual_m if star else rc.max_residual_m
+        return _Window(radius, sigmas * cand.sigma_rad, step, max_res)
+
+    def _rival_fits(
+        self, candidates: list[_Candidate], pts: FloatArray, at: Pose2D, chosen: int, star: bool,
+    ) -> bool:
+        """Does another known island that may be here (rival_sigmas) fit the points too? Its
+        wide search finds an island whose odometric estimate drifted out of the narrow window
+        the recognition searched."""
+        rc = self.config.revisit
+        k = rc.rival_sigmas
+        if k <= 0:
+            return False
+        max_res = rc.star_max_residual_m if star else rc.max_residual_m
+        for cand in candidates:
+            est = at.relative_to(cand.origin)
+            if cand.island.id == chosen or math.hypot(est.x, est.y) > (
+                k * cand.sigma_m + rc.max_dock_m
+            ):
+                continue
+            radius = min(max(k * cand.sigma_m, rc.search_min_m), rc.rival_max_m)
+            win = _Window(
+                radius,
+                min(k * cand.sigma_rad, math.radians(rc.star_search_max_deg)),
+                min(max(rc.search_step_m, radius / rc.star_search_cells), rc.rival_step_m),
+                max_res,
+            )
+            # A rival's failed fits are not refusals of this recognition.
+            if self._search(cand.island, pts, est, win, count_refusals=False) is not None:
+                return True
+        return False
+
+    def _search(
+        self, island: Island, pts: FloatArray, est: Pose2D, win: _Window,
+        count_refusals: bool = True,
+    ) -> Recognition | None:
+        """The recognition of `island` in `pts` searched around `est` (see `recognize`), or
+        None; each refusal is counted unless count_refusals is False."""
+        rc = self.config.revisit
+        refuse: Callable[[Refusal], None] = (
+            self.diagnostics.refuse if count_refusals else _ignore)
+        fits = self._refine(island, pts, est, win, refuse)
+        if not fits:
+            return None
+        best = min(fits, key=lambda f: f.residual_m)
+        p = best.pose
+        if any(math.hypot(f.pose.x - p.x, f.pose.y - p.y) > rc.ambiguity_m for f in fits):
+            refuse(Refusal.AMBIGUOUS)
+            return None
+        if math.hypot(p.x, p.y) > rc.max_dock_m:
+            refuse(Refusal.ORIGIN_TOO_FAR)
+            return None
+        segs = island.model.segments
+        if not drive_clear(segs, np.array([p.x, p.y]), np.zeros(2), rc.path_clearance_m):
+            refuse(Refusal.PATH_BLOCKED)
+            return None
+        if not localizes_back(self.config, island.model, pts, p):
+            refuse(Refusal.LOCALIZATION_CHECK)
+            return None
+        return best
+
+    def _guesses(self, island: Island, pts: FloatArray, est: Pose2D, win: _Window
+                 ) -> list[Pose2D]:
+        """The best-scoring distinct guesses of a grid around `est` (the fraction of points
+        within inlier_m of the model), at most refine_guesses of them."""
+        rc = self.config.revisit
+        segs = island.model.segments
+        n = math.floor(win.radius_m / win.step_m + 1e-9)
+        ticks = np.arange(-n, n + 1) * win.step_m
+        gx, gy = np.meshgrid(ticks, ticks)
+        inside = np.hypot(gx, gy) <= win.radius_m + 1e-9
+        offs = np.stack([gx[inside], gy[inside]], axis=1)
+        heading_step = math.radians(rc.heading_step_deg)
+        m = math.floor(win.max_dth_rad / heading_step + 1e-9)
+        guesses: list[tuple[float, Pose2D]] = []
+        for dth in np.arange(-m, m + 1) * heading_step:
+            th = est.theta + float(dth)
+            c, s_ = math.cos(th), math.sin(th)
+            rot = np.stack([c * pts[:, 0] - s_ * pts[:, 1], s_ * pts[:, 0] + c * pts[:, 1]], 1)
+            base = rot + np.array([est.x, est.y])
+            for chunk in np.array_split(offs, max(1, len(offs) // _GUESSES_PER_BATCH)):
+                world = (base[None, :, :] + chunk[:, None, :]).reshape(-1, 2)
+                d = point_segment_distance(world, segs).min(axis=1).reshape(len(chunk), -1)
+                score = np.mean(d <= rc.inlier_m, axis=1)
+                for k in range(len(chunk)):
+                    guesses.append(
+                        (float(score[k]), Pose2D(est.x + chunk[k, 0], est.y + chunk[k, 1], th))
+                    )
+        guesses.sort(key=lambda g: -g[0])
+        chosen: list[Pose2D] = []
+        for _, g in guesses:
+            if all(math.hypot(g.x - c.x, g.y - c.y) > 2 * win.step_m for c in chosen):
+                chosen.append(g)
+            if len(chosen) >= rc.refine_guesses:
+                break
+        return chosen
+
+    def _refine(self, island: Island, pts: FloatArray, est: Pose2D, win: _Window,
+                refuse: Callable[[Refusal], None]) -> list[Recognition]:
+        """Every refined guess that fits the model well (each refused one counted)."""
+        rc = self.config.revisit
+        heading_step = math.radians(rc.heading_step_deg)
+        segs = island.model.segments
+        fits: list[Recognition] = []
+        for g in self._guesses(island, pts, est, win):
+            res = localize(island.model, pts, g, self.config.localize)
+            p = res.pose
+            reason: Refusal | None = None
+            if not res.converged:
+                reason = Refusal.NOT_CONVERGED
+            elif res.residual_m > win.max_residual_m:
+                reason = Refusal.RESIDUAL
+            elif res.constraint < rc.min_constraint:
+                reason = Refusal.WEAK_CONSTRAINT
+            elif math.hypot(p.x - est.x, p.y - est.y) > win.radius_m:
+                reason = Refusal.OUTSIDE_SEARCH_RADIUS
+            elif abs(wrap_angle(p.theta - est.theta)) > win.max_dth_rad + 2.0 * heading_step:
+                # The refinement turned the points far out of the heading window (a +
+                # junction fits itself turned by 90 deg).
+                reason = Refusal.OUTSIDE_HEADING_WINDOW
+            if reason is not None:
+                refuse(reason)
+                continue
+            world = from_frame(pts, p)
+            inl = float(np.mean(point_segment_distance(world, segs).min(axis=1) <= rc.inlier_m))
+            if inl < rc.min_inlier_fraction:
+                refuse(Refusal.INLIERS)
+                continue
+            fits.append(Recognition(island.id, p, float(res.residual_m), inl))
+        return fits
