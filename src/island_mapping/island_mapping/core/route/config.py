@@ -1,0 +1,182 @@
+"""Configuration of route following by the map (one source of defaults for the simulated
+evaluation and the explorer node)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from island_mapping.core.localize import LocalizeConfig, Solver
+
+
+class NavigateError(ValueError):
+    """Bad input to route following (the message names what was wrong)."""
+
+
+def _point_to_line() -> LocalizeConfig:
+    """Localization with the Gauss-Newton point-to-line step (the Dudek-MacKenzie step reaches
+    the same fixed point but often needs more than its iteration limit)."""
+    return LocalizeConfig(solver=Solver.POINT_TO_LINE)
+
+
+@dataclass(frozen=True)
+class NavigateConfig:
+    """Route following and its evaluation."""
+
+    success_tol_m: float = field(
+        default=0.25, metadata={"help": "largest position error of a successful localization [m]"}
+    )
+    success_tol_deg: float = field(
+        default=10.0, metadata={"help": "largest heading error of a successful localization [deg]"}
+    )
+    start_offset_m: float = field(
+        default=0.1,
+        metadata={
+            "help": "the robot starts uniformly within this distance of the source "
+            "origin (same start for both methods) [m]"
+        },
+    )
+    start_offset_deg: float = field(
+        default=5.0, metadata={"help": "and within this heading of it [deg]"}
+    )
+    go_speed_mps: float = field(default=0.4, metadata={"help": "speed of Go steps [m/s]"})
+    turn_rate_radps: float = field(
+        default=0.6, metadata={"help": "largest turn rate of Rot steps and docking [rad/s]"}
+    )
+    k_heading_per_s: float = field(
+        default=2.0, metadata={"help": "turn rate per radian of heading error [1/s]"}
+    )
+    k_lateral_rad_per_m: float = field(
+        default=1.0, metadata={"help": "approach angle per metre off the hallway middle [rad/m]"}
+    )
+    max_approach_deg: float = field(
+        default=20.0, metadata={"help": "largest approach angle when re-centring [deg]"}
+    )
+    stop_distance_m: float = field(
+        default=0.6, metadata={"help": "a Go step ends early at this front range [m]"}
+    )
+    search_radius_m: float = field(
+        default=0.6,
+        metadata={
+            "help": "initial guesses for localization cover this square half-side "
+            "around the estimate [m]"
+        },
+    )
+    search_step_m: float = field(default=0.3, metadata={"help": "spacing of the guesses [m]"})
+    search_heading_deg: float = field(
+        default=8.0, metadata={"help": "guesses also at +- this heading offset [deg]"}
+    )
+    max_turn_deg: float = field(
+        default=30.0,
+        metadata={
+            "help": "a fit that turned the points farther than this from the estimate's "
+            "heading is no arrival candidate [deg]"
+        },
+    )
+    min_fit_constraint: float = field(
+        default=0.08,
+        metadata={
+            "help": "a fit that constrains the position along some axis less than this "
+            "(smaller eigenvalue of the normalized normal matrix) is no arrival candidate "
+            "[0-0.5]"
+        },
+    )
+    max_points: int = field(
+        default=400, metadata={"help": "localization uses at most this many points [-]"}
+    )
+    min_agreeing: int = field(
+        default=3,
+        metadata={
+            "help": "stop trying further guesses once this many trusted results agree "
+            "within 0.1 m [-]"
+        },
+    )
+    max_residual_m: float = field(
+        default=0.15, metadata={"help": "a localization with a larger RMS residual is rejected [m]"}
+    )
+    axis_search_step_m: float = field(
+        default=0.8,
+        metadata={
+            "help": "when the localization at an island is not trusted, the robot looks "
+            "around again at multiples of this along the fit's least constrained axis "
+            "(0 = off) [m]"
+        },
+    )
+    axis_search_steps: int = field(
+        default=2, metadata={"help": "multiples tried on each side [-]"}
+    )
+    axis_search_min_constraint: float = field(
+        default=0.08,
+        metadata={
+            "help": "a fit found by that search is trusted only with at least this "
+            "constraint (smaller eigenvalue of the normalized normal matrix) [0-0.5]"
+        },
+    )
+    sparse_look_points: int = field(
+        default=300,
+        metadata={
+            "help": "a look-around with fewer echo points than this is too sparse for its fit's "
+            "weak axis to mean anything: the search goes along the arrival heading instead [-]"
+        },
+    )
+    dock_tol_m: float = field(
+        default=0.05, metadata={"help": "docking at an origin ends within this distance [m]"}
+    )
+    dock_tol_deg: float = field(default=3.0, metadata={"help": "and this heading [deg]"})
+    dock_attempts: int = field(default=3, metadata={"help": "drive-and-relocalize rounds [-]"})
+    physics_rate_hz: float = field(default=50.0, metadata={"help": "simulation step rate [Hz]"})
+    sensor_rate_hz: float = field(default=10.0, metadata={"help": "sonar scan rate [Hz]"})
+    max_edge_time_s: float = field(
+        default=900.0, metadata={"help": "simulated time limit of one edge [s]"}
+    )
+    localize: LocalizeConfig = field(
+        default_factory=_point_to_line,
+        metadata={"help": "line-model localization (point-to-line Gauss-Newton)"},
+    )
+
+    def __post_init__(self) -> None:
+        for name in (
+            "success_tol_m",
+            "success_tol_deg",
+            "go_speed_mps",
+            "turn_rate_radps",
+            "search_step_m",
+            "max_residual_m",
+            "dock_tol_m",
+            "dock_tol_deg",
+            "physics_rate_hz",
+            "sensor_rate_hz",
+            "max_edge_time_s",
+        ):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise NavigateError(f"NavigateConfig.{name}: expected a number > 0, got {v!r}")
+        for name in (
+            "start_offset_m",
+            "start_offset_deg",
+            "search_radius_m",
+            "search_heading_deg",
+            "max_turn_deg",
+            "min_fit_constraint",
+            "axis_search_step_m",
+            "axis_search_min_constraint",
+        ):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise NavigateError(f"NavigateConfig.{name}: expected a number >= 0, got {v!r}")
+        if self.axis_search_steps < 0:
+            raise NavigateError(
+                f"NavigateConfig.axis_search_steps: must be >= 0, got {self.axis_search_steps}"
+            )
+        if self.sparse_look_points < 0:
+            raise NavigateError(
+                f"NavigateConfig.sparse_look_points: must be >= 0, got {self.sparse_look_points}"
+            )
+        if self.dock_attempts < 1:
+            raise NavigateError(
+                f"NavigateConfig.dock_attempts: must be >= 1, got {self.dock_attempts}"
+            )
+
+    @property
+    def steps_per_scan(self) -> int:
+        return max(1, round(self.physics_rate_hz / self.sensor_rate_hz))

@@ -1,0 +1,214 @@
+"""Motion primitives of route following, as generators of velocity commands (no ROS, no simulator).
+
+Every primitive is a generator that yields one command `(v [m/s], w [rad/s])` per sensor period
+and reads the robot's newest sensing from a shared `Sense`, which whoever runs the generator
+updates in place before resuming it: the simulated evaluation after stepping its robot, the
+explorer node when the next scan arrives. The same code therefore drives the simulator and the
+live robot, and a primitive's logic reads top to bottom:
+
+    blocked = yield from step(drive, v, w)   # one sensor period under (v, w)
+
+`Go d` follows the hallway for d metres of odometric travel, centred by the same wall fits the
+hall follower uses (`island_msgs_py.hall_perception`); `Rot a` turns in place by a of odometric
+heading; `look_around` turns a full circle collecting echoes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Generator
+from dataclasses import dataclass, field
+
+import numpy as np
+from island_msgs_py.hall_perception import HallPerceptionConfig, perceive
+from island_msgs_py.types import ControlStrategy, FloatArray, Pose2D, PrimitiveKind, wrap_angle
+
+from island_mapping.core.route.config import NavigateConfig
+
+Command = tuple[float, float]
+"""(v [m/s], w [rad/s]) for one sensor period."""
+
+Motion = Generator[Command, None, None]
+
+# Rotations end within this of their target heading [rad]; the robot counts as not turning
+# below this turn rate [rad/s].
+_HEADING_TOL_RAD = math.radians(0.5)
+_STILL_RADPS = 0.05
+# A drive ends within this of its target [m]; beyond this distance it steers toward it [m].
+_ARRIVE_M = 0.01
+_GO_TO_MIN_M = 0.02
+_STEER_FROM_M = 0.1
+# Speed profile near the end of a drive: v = min(cruise, gain * remaining + floor) [1/s, m/s].
+_APPROACH_GAIN_PER_S = 1.5
+_GO_TO_FLOOR_MPS = 0.02
+_GO_FLOOR_MPS = 0.03
+# A Go ends this close to its distance [m]; the slowest turn of rotate_by [rad/s].
+_GO_DONE_M = 0.005
+_MIN_ROT_RATE_RADPS = 0.1
+# The hallway direction is taken from the walls when they are within this of the heading [rad].
+_WALL_TRUST_RAD = math.radians(25.0)
+
+
+class RouteTimeoutError(Exception):
+    """The time limit of the current leg of a route ran out."""
+
+
+@dataclass
+class Sense:
+    """The robot's newest sensing, updated in place before a motion generator is resumed.
+
+    ranges_m / angles_rad: the latest scan in the robot frame (inf = no echo) [m, rad];
+    w_radps: the measured turn rate (odometry's twist) [rad/s]; blocked: the last period's motion
+    was stopped by an obstacle (a bumper, or the simulator's contact).
+    """
+
+    t_s: float
+    odom: Pose2D
+    ranges_m: FloatArray
+    angles_rad: FloatArray
+    w_radps: float = 0.0
+    blocked: bool = False
+
+    def points_odom(self) -> FloatArray:
+        """Echoes of the latest scan in the odometry frame, (N, 2) [m]."""
+        o = self.odom
+        a = self.angles_rad + o.theta
+        ok = np.isfinite(self.ranges_m)
+        r = self.ranges_m[ok]
+        return np.stack([o.x + r * np.cos(a[ok]), o.y + r * np.sin(a[ok])], axis=1)
+
+
+@dataclass
+class Drive:
+    """What the motion primitives share: the sensing, the configurations and the time limit."""
+
+    sense: Sense
+    cfg: NavigateConfig = field(default_factory=NavigateConfig)
+    perception: HallPerceptionConfig = field(default_factory=HallPerceptionConfig)
+    hall_width_m: float = 2.0  # assumed hallway width until both walls are seen [m]
+    deadline_s: float = math.inf  # RouteTimeoutError past this time [s]
+
+
+def step(d: Drive, v_mps: float, w_radps: float) -> Generator[Command, None, bool]:
+    """One sensor period under (v, w); returns whether an obstacle stopped the motion."""
+    if d.sense.t_s > d.deadline_s:
+        raise RouteTimeoutError()
+    yield (v_mps, w_radps)
+    return d.sense.blocked
+
+
+def _turn_rate(d: Drive, err_rad: float) -> float:
+    c = d.cfg
+    return float(np.clip(c.k_heading_per_s * err_rad, -c.turn_rate_radps, c.turn_rate_radps))
+
+
+def rotate_to(d: Drive, heading_odom_rad: float) -> Motion:
+    """Turn in place to an odometric heading and wait until the turn has stopped."""
+    while True:
+        err = wrap_angle(heading_odom_rad - d.sense.odom.theta)
+        if abs(err) <= _HEADING_TOL_RAD and abs(d.sense.w_radps) < _STILL_RADPS:
+            return
+        yield from step(d, 0.0, _turn_rate(d, err))
+
+
+def rotate_by(d: Drive, angle_rad: float) -> Motion:
+    """Turn in place by angle_rad of odometric heading (any size, e.g. a full turn)."""
+    c = d.cfg
+    done, last = 0.0, d.sense.odom.theta
+    sign = 1.0 if angle_rad >= 0 else -1.0
+    while abs(angle_rad) - abs(done) > _HEADING_TOL_RAD:
+        remaining = abs(angle_rad) - abs(done)
+        w = sign * min(c.turn_rate_radps, max(_MIN_ROT_RATE_RADPS, c.k_heading_per_s * remaining))
+        yield from step(d, 0.0, w)
+        th = d.sense.odom.theta
+        done += wrap_angle(th - last)
+        last = th
+    yield from step(d, 0.0, 0.0)
+
+
+def go_to(d: Drive, target_odom: Pose2D) -> Motion:
+    """Drive by odometry to a pose: turn to face it, drive (stopping at a wall), turn to it."""
+    c = d.cfg
+    o = d.sense.odom
+    if math.hypot(target_odom.x - o.x, target_odom.y - o.y) > _GO_TO_MIN_M:
+        yield from rotate_to(d, math.atan2(target_odom.y - o.y, target_odom.x - o.x))
+        while True:
+            o = d.sense.odom
+            dx, dy = target_odom.x - o.x, target_odom.y - o.y
+            dist = math.hypot(dx, dy)
+            along = dx * math.cos(o.theta) + dy * math.sin(o.theta)
+            if along <= _ARRIVE_M or dist <= _ARRIVE_M:
+                break
+            err = wrap_angle(math.atan2(dy, dx) - o.theta) if dist > _STEER_FROM_M else 0.0
+            v = min(c.go_speed_mps, _APPROACH_GAIN_PER_S * along + _GO_TO_FLOOR_MPS)
+            if (yield from step(d, v, _turn_rate(d, err))):
+                break  # a wall is in the way: stop here
+    yield from rotate_to(d, target_odom.theta)
+    yield from step(d, 0.0, 0.0)
+
+
+def go_along_hall(d: Drive, distance_m: float) -> Motion:
+    """Drive distance_m of odometric travel forward, centred in the hallway by the sonar."""
+    c = d.cfg
+    travelled = 0.0
+    last = d.sense.odom
+    hold = last.theta  # hallway direction in the odometry frame [rad]
+    half_width = 0.5 * d.hall_width_m
+    max_app = math.radians(c.max_approach_deg)
+    while travelled < distance_m - _GO_DONE_M:
+        p = perceive(d.sense.ranges_m, d.sense.angles_rad, d.perception)
+        o = d.sense.odom
+        if p.front_m < c.stop_distance_m:
+            break
+        if p.wall_angle_rad is not None and abs(p.wall_angle_rad) < _WALL_TRUST_RAD:
+            hold = wrap_angle(o.theta + p.wall_angle_rad)
+        use_left = math.isfinite(p.left_dist_m) and not p.left_open
+        use_right = math.isfinite(p.right_dist_m) and not p.right_open
+        offset = 0.0
+        if use_left and use_right:
+            offset = 0.5 * (p.left_dist_m - p.right_dist_m)
+            half_width = 0.5 * (p.left_dist_m + p.right_dist_m)
+        elif use_left:
+            offset = p.left_dist_m - half_width
+        elif use_right:
+            offset = half_width - p.right_dist_m
+        approach = float(np.clip(c.k_lateral_rad_per_m * offset, -max_app, max_app))
+        err = wrap_angle(hold + approach - o.theta)
+        remaining = distance_m - travelled
+        v = min(c.go_speed_mps, _APPROACH_GAIN_PER_S * remaining + _GO_FLOOR_MPS)
+        yield from step(d, v, _turn_rate(d, err))
+        now = d.sense.odom
+        travelled += math.hypot(now.x - last.x, now.y - last.y)
+        last = now
+    yield from step(d, 0.0, 0.0)
+
+
+def execute_strategy(d: Drive, strategy: ControlStrategy) -> Motion:
+    """Run the primitives: Go d [cm] along the hallway, Rot a [deg CCW] in place (odometry)."""
+    for s in strategy.steps:
+        if s.kind is PrimitiveKind.GO:
+            yield from go_along_hall(d, s.metres)
+        else:
+            turn = s.value if s.value <= 180 else s.value - 360
+            yield from rotate_by(d, math.radians(turn))
+
+
+def look_around(d: Drive) -> Generator[Command, None, FloatArray]:
+    """Turn once in place collecting echoes; returns them in the final robot frame, (N, 2) [m]."""
+    pts = [d.sense.points_odom()]
+    done, last = 0.0, d.sense.odom.theta
+    while done < 2.0 * math.pi:
+        yield from step(d, 0.0, d.cfg.turn_rate_radps)
+        th = d.sense.odom.theta
+        done += wrap_angle(th - last)
+        last = th
+        pts.append(d.sense.points_odom())
+    yield from step(d, 0.0, 0.0)
+    return to_robot_frame(np.concatenate(pts, axis=0), d.sense.odom)
+
+
+def to_robot_frame(points_odom: FloatArray, pose: Pose2D) -> FloatArray:
+    """Points [m] in the odometry frame -> the frame of the robot at `pose`."""
+    c, s = math.cos(pose.theta), math.sin(pose.theta)
+    dx = points_odom - np.array([pose.x, pose.y])
+    return np.stack([c * dx[:, 0] + s * dx[:, 1], -s * dx[:, 0] + c * dx[:, 1]], axis=1)
