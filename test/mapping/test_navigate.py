@@ -1,4 +1,4 @@
-"""Navigating by the map (evaluation.navigate, docking, routes, explore) and the island tracker
+"""Navigating by the map (core.route; evaluation.navigate, routes, explore) and the island tracker
 (core.tracker) on a small hand-made graph in an L-shaped building."""
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from island_mapping.core.graph import TopoGraph
 from island_mapping.core.localize import LocalizationResult, localize
+from island_mapping.core.route import NavigateConfig, NavigateError, unconstrained_axis_rad
 from island_mapping.core.tracker import IslandTracker, TrackerConfig
-from island_mapping.evaluation.docking import unconstrained_axis_rad
 from island_mapping.evaluation.explore import explore
-from island_mapping.evaluation.navigate import NavigateConfig, NavigateError, SimSetup
+from island_mapping.evaluation.navigate import SimSetup
 from island_mapping.evaluation.routes import (
     evaluate_routes,
     follow_route,
@@ -343,7 +343,7 @@ def test_a_fit_the_estimate_rules_out_is_no_candidate(
     (trusted, the corner pins both axes); when every refinement comes back turned 120 deg from
     the estimate, or constraining the position only weakly, none is a candidate unless the
     rule allows it."""
-    import island_mapping.evaluation.docking as nav
+    import island_mapping.core.route.arrival as nav
 
     island, points = _corner_island_and_look(seed=3)
     cfg = NavigateConfig()

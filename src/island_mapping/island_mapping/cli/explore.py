@@ -38,7 +38,8 @@ from island_mapping.core.placement import (
     feature_distance_m,
     placement_counts,
 )
-from island_mapping.evaluation.navigate import NavigateError, SimSetup
+from island_mapping.core.route import NavigateError
+from island_mapping.evaluation.navigate import SimSetup
 from island_mapping.evaluation.routes import EdgeResult, evaluate_routes
 
 PROGRESS_STEPS = 1000

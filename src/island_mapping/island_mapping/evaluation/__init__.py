@@ -5,8 +5,8 @@ it drives a simulated robot to measure what the core builds (offline exploration
 following against the world's truth, confidence maps, the world's own places). It never imports
 rclpy; nodes never import it.
 
-- `navigate`: NavigateConfig, SimSetup, SimDriver, execute_strategy (the simulated robot driven
-  by strategies); `docking`: look_around, localize_multi, localize_and_dock;
+- `navigate`: SimSetup, SimRunner (the simulated robot driven by the route-following
+  generators of `island_mapping.core.route`, which hold NavigateConfig and the motions);
 - `routes`: follow_route, follow_route_global_odometry, evaluate_routes (routes by the map vs
   global odometry); `explore`: explore, ExplorationResult (offline exploration, deterministic);
 - `validation`: confidence maps with the simulated sonar vs the measures (run_validation).

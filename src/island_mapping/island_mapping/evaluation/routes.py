@@ -3,7 +3,8 @@
 Simulator-backed (numpy + island_sim cores, no ROS). `follow_route` drives a planned route of
 islands with no global frame: localize and dock at the source island, then per edge execute its
 strategy and localize in the next island starting from the estimate (0, 0, 0) (the strategy
-ends at the target origin) and dock there (`evaluation.docking`).
+ends at the target origin) and dock there: `island_mapping.core.route`, the same generators the
+explorer node runs, driven here on the simulated robot (`navigate.SimRunner`).
 
 An edge succeeds when that localization converged and its pose is within `success_tol_m` and
 `success_tol_deg` of the robot's true pose expressed in the island frame (the island's
@@ -19,27 +20,30 @@ target's true origin. `evaluate_routes` compares the two on random island pairs.
 
 from __future__ import annotations
 
-import itertools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Generator, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from island_msgs_py.types import Edge, Island, Pose2D
-from island_sim.core.hall_follower import HallFollower
+from island_msgs_py.types import Edge, Island, Pose2D, wrap_angle
 from island_sim.core.robot import SimRobot
-from island_sim.core.sonar import SonarModel
 
 from island_mapping.core.graph import GraphError, TopoGraph, reverse_strategy
-from island_mapping.evaluation.docking import localize_and_dock, pose_error, truth_in
-from island_mapping.evaluation.navigate import (
+from island_mapping.core.route import (
+    Command,
+    Drive,
+    Fix,
     NavigateConfig,
     NavigateError,
-    SimDriver,
-    SimSetup,
-    SimTimeoutError,
+    RouteTimeoutError,
     execute_strategy,
+    go_to,
+    route_edges,
 )
+from island_mapping.core.route import (
+    follow_route as follow_route_by_map,
+)
+from island_mapping.evaluation.navigate import SimRunner, SimSetup
 
 
 @dataclass(frozen=True)
@@ -101,16 +105,52 @@ def _random_start(island: Island, cfg: NavigateConfig, rng: np.random.Generator)
     return island.origin_truth.compose(Pose2D(rad * math.cos(ang), rad * math.sin(ang), dth))
 
 
-def _route_edges(graph: TopoGraph, route: Sequence[int]) -> list[Edge]:
-    if len(route) < 1:
-        raise NavigateError("route: needs at least one island")
-    edges = []
-    for a, b in itertools.pairwise(route):
-        try:
-            edges.append(graph.get_edge(a, b))
-        except (GraphError, KeyError):
-            raise NavigateError(f"route: no edge {a}->{b} in the graph") from None
-    return edges
+def truth_in(island: Island, true_pose: Pose2D) -> Pose2D:
+    """The true pose in the island's frame (its origin_truth), or a NavigateError."""
+    if island.origin_truth is None:
+        raise NavigateError(f"island {island.id} has no origin_truth: cannot evaluate")
+    return true_pose.relative_to(island.origin_truth)
+
+
+def pose_error(a: Pose2D, b: Pose2D) -> tuple[float, float]:
+    """(position error [m], heading error [deg]) between two poses."""
+    return math.hypot(a.x - b.x, a.y - b.y), abs(math.degrees(wrap_angle(a.theta - b.theta)))
+
+
+def _edges(graph: TopoGraph, route: Sequence[int]) -> list[Edge]:
+    return route_edges({(e.source, e.target): e for e in graph.iter_edges()}, route)
+
+
+class _JudgedByTruth:
+    """Route observer of the evaluation: an arrival goes on when its localization is trusted
+    and, by the simulator's truth at the moment it was made, within the success tolerance."""
+
+    def __init__(self, graph: TopoGraph, robot: SimRobot, cfg: NavigateConfig) -> None:
+        self.graph, self.robot, self.cfg = graph, robot, cfg
+        self.error = (math.inf, math.inf)
+        self.results: list[EdgeResult] = []
+
+    def fixed(self, fix: Fix) -> None:
+        truth = truth_in(self.graph.get_island(fix.island_id), self.robot.true_pose)
+        self.error = pose_error(fix.pose, truth)
+
+    def arrived(self, edge: Edge | None, fix: Fix) -> bool:
+        if edge is None:
+            return fix.trusted
+        c = self.cfg
+        err_m, err_deg = self.error
+        good = fix.trusted and err_m <= c.success_tol_m and err_deg <= c.success_tol_deg
+        self.results.append(EdgeResult(edge.source, edge.target, str(edge.strategy),
+                                       fix.trusted, err_m, err_deg, good))
+        return good
+
+
+def _result(graph: TopoGraph, route: Sequence[int], robot: SimRobot, completed: bool,
+            edges: list[EdgeResult], cfg: NavigateConfig) -> RouteResult:
+    target = graph.get_island(route[-1])
+    fin_m, fin_deg = pose_error(truth_in(target, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
+    success = completed and fin_m <= cfg.success_tol_m and fin_deg <= cfg.success_tol_deg
+    return RouteResult(tuple(route), tuple(edges), fin_m, fin_deg, success, robot.time_s)
 
 
 def follow_route(
@@ -124,37 +164,37 @@ def follow_route(
     """Follow `route` (island ids joined by edges of `graph`) by island localization."""
     c = cfg if cfg is not None else NavigateConfig()
     gen = rng if rng is not None else np.random.default_rng(0)
-    edges = _route_edges(graph, route)
+    edges = _edges(graph, route)
     src = graph.get_island(route[0])
     true_start = start if start is not None else _random_start(src, c, gen)
     robot = SimRobot(setup.world, true_start, gen, setup.robot, setup.odometry)
-    sim = SimDriver(setup.world, robot, SonarModel(setup.sonar), c, gen)
-    follower = HallFollower(setup.follower)
-    results: list[EdgeResult] = []
-    ok_all = True
+    sim = SimRunner(setup, robot, gen, c)
+    judge = _JudgedByTruth(graph, robot, c)
+    islands = {i.id: i for i in graph.islands()}
+    outcome = sim.run(follow_route_by_map(sim.drive, islands, edges, route[0], judge))
+    return _result(graph, route, robot, outcome.completed, judge.results, c)
+
+
+def _baseline_trip(d: Drive, graph: TopoGraph, edges: list[Edge], robot: SimRobot,
+                   origins_odom: Mapping[int, Pose2D],
+                   results: list[EdgeResult]) -> Generator[Command, None, bool]:
+    """The baseline's motion: per edge its strategy, then by odometry to the target's recorded
+    odometric pose; no re-localization. False when an edge ran out of time."""
+    c = d.cfg
     try:
-        sim.deadline_s = sim.t + c.max_edge_time_s
-        trusted, _, _ = localize_and_dock(sim, src, Pose2D(0.0, 0.0, 0.0))
-        ok_all = trusted
-        for e in edges if ok_all else []:
-            sim.deadline_s = sim.t + c.max_edge_time_s
-            execute_strategy(sim, e.strategy, follower)
-            trusted, err_m, err_deg = localize_and_dock(
-                sim, graph.get_island(e.target), Pose2D(0.0, 0.0, 0.0)
-            )
-            good = trusted and err_m <= c.success_tol_m and err_deg <= c.success_tol_deg
+        for e in edges:
+            d.deadline_s = d.sense.t_s + c.max_edge_time_s
+            yield from execute_strategy(d, e.strategy)
+            yield from go_to(d, origins_odom[e.target])
+            tgt = graph.get_island(e.target)
+            err_m, err_deg = pose_error(truth_in(tgt, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
+            good = err_m <= c.success_tol_m and err_deg <= c.success_tol_deg
             results.append(
-                EdgeResult(e.source, e.target, str(e.strategy), trusted, err_m, err_deg, good)
+                EdgeResult(e.source, e.target, str(e.strategy), False, err_m, err_deg, good)
             )
-            if not good:
-                ok_all = False
-                break
-    except SimTimeoutError:
-        ok_all = False
-    target = graph.get_island(route[-1])
-    fin_m, fin_deg = pose_error(truth_in(target, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
-    success = ok_all and fin_m <= c.success_tol_m and fin_deg <= c.success_tol_deg
-    return RouteResult(tuple(route), tuple(results), fin_m, fin_deg, success, sim.t)
+    except RouteTimeoutError:
+        return False
+    return True
 
 
 def follow_route_global_odometry(
@@ -169,7 +209,7 @@ def follow_route_global_odometry(
     """The baseline: the same trip on global odometry alone (see the module docstring)."""
     c = cfg if cfg is not None else NavigateConfig()
     gen = rng if rng is not None else np.random.default_rng(0)
-    edges = _route_edges(graph, route)
+    edges = _edges(graph, route)
     for i in route:
         if i not in origins_odom:
             raise NavigateError(f"baseline: no recorded odometric pose of island {i}")
@@ -178,27 +218,10 @@ def follow_route_global_odometry(
     robot = SimRobot(
         setup.world, true_start, gen, setup.robot, setup.odometry, odom_start=origins_odom[route[0]]
     )
-    sim = SimDriver(setup.world, robot, SonarModel(setup.sonar), c, gen)
-    follower = HallFollower(setup.follower)
+    sim = SimRunner(setup, robot, gen, c)
     results: list[EdgeResult] = []
-    ok = True
-    try:
-        for e in edges:
-            sim.deadline_s = sim.t + c.max_edge_time_s
-            execute_strategy(sim, e.strategy, follower)
-            sim.go_to(origins_odom[e.target])
-            tgt = graph.get_island(e.target)
-            err_m, err_deg = pose_error(truth_in(tgt, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
-            good = err_m <= c.success_tol_m and err_deg <= c.success_tol_deg
-            results.append(
-                EdgeResult(e.source, e.target, str(e.strategy), False, err_m, err_deg, good)
-            )
-    except SimTimeoutError:
-        ok = False
-    target = graph.get_island(route[-1])
-    fin_m, fin_deg = pose_error(truth_in(target, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
-    success = ok and fin_m <= c.success_tol_m and fin_deg <= c.success_tol_deg
-    return RouteResult(tuple(route), tuple(results), fin_m, fin_deg, success, sim.t)
+    ok = sim.run(_baseline_trip(sim.drive, graph, edges, robot, origins_odom, results))
+    return _result(graph, route, robot, ok, results, c)
 
 
 def with_reverse_edges(graph: TopoGraph) -> TopoGraph:

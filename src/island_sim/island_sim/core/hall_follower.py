@@ -27,18 +27,20 @@ from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
-from island_msgs_py.geometry import wrap_angles
+from island_msgs_py.hall_perception import (
+    HallPerceptionConfig,
+    Perception,
+    PerceptionError,
+    perceive,
+)
 from island_msgs_py.types import (
     ControlStrategy,
-    FloatArray,
     Pose2D,
     PrimitiveKind,
     StrategyPrimitive,
     wrap_angle,
 )
 
-# A wall fit needs points spread at least this far along the robot's x axis [m].
-_MIN_FIT_SPAN_M = 0.2
 # Weight of a new wall-based hallway direction in the smoothed direction estimate [-].
 _AXIS_SMOOTHING = 0.3
 # A robot that moved less than this in one control period has stopped [m].
@@ -47,8 +49,6 @@ _SETTLED_STEP_M = 0.002
 # control period under this fraction of (commanded speed x period) counts as no progress [-].
 _STALL_MIN_SPEED_MPS = 0.1
 _STALL_PROGRESS_FRACTION = 0.2
-# Largest angle [rad] between the left and right wall fits of one hallway.
-_PARALLEL_RAD = math.radians(8.0)
 # Largest disagreement [rad] between the wall-based and the held hallway direction still trusted.
 _AXIS_TRUST_RAD = math.radians(25.0)
 
@@ -243,6 +243,13 @@ class HallFollowerConfig:
         parse_script(self.script)
 
     @property
+    def perception(self) -> HallPerceptionConfig:
+        """The hallway perception these fields configure (shared with route following)."""
+        return HallPerceptionConfig(self.robot_radius_m, self.path_margin_m,
+                                    self.side_half_angle_deg, self.fit_tolerance_m,
+                                    self.open_side_m)
+
+    @property
     def script_choices(self) -> tuple[TurnChoice, ...]:
         return parse_script(self.script)
 
@@ -256,41 +263,6 @@ class Decision:
     options: tuple[TurnChoice, ...]
     choice: TurnChoice
     at_dead_end: bool
-
-
-@dataclass(frozen=True)
-class Perception:
-    """What one scan says about the surroundings (robot frame)."""
-
-    front_m: float  # nearest obstacle in the robot's path or the front sector [m]
-    front_free_m: float  # range straight ahead [m] (inf = nothing within range)
-    left_open: bool
-    right_open: bool
-    left_dist_m: float  # perpendicular distance to the left wall fit [m], inf if none
-    right_dist_m: float
-    wall_angle_rad: float | None  # hallway direction in the robot frame from the wall fits
-
-
-def _fit_wall(pts: FloatArray, perp_m: float, tol_m: float) -> tuple[float, float | None]:
-    """(distance [m], direction [rad] or None) of a side wall from points (K, 2) on that side.
-
-    `perp_m` is the perpendicular transducer's distance (inf if it has no echo). A straight-line
-    fit is used only when all points lie within `tol_m` of it (one wall, not a corner).
-    """
-    if pts.shape[0] >= 2 and float(np.ptp(pts[:, 0])) >= _MIN_FIT_SPAN_M:
-        # least-squares line y = a + b x (closed form: a handful of points per side)
-        xm, ym = float(pts[:, 0].mean()), float(pts[:, 1].mean())
-        dx, dy = pts[:, 0] - xm, pts[:, 1] - ym
-        b = float(dx @ dy) / float(dx @ dx)
-        a = ym - b * xm
-        resid = np.abs(pts[:, 1] - (a + b * pts[:, 0])) / math.sqrt(1.0 + b * b)
-        if float(np.max(resid)) <= tol_m:
-            return float(abs(a) / math.sqrt(1.0 + b * b)), float(math.atan(b))
-    if math.isfinite(perp_m):
-        return perp_m, None
-    if pts.shape[0] == 0:
-        return math.inf, None
-    return float(np.min(np.abs(pts[:, 1]))), None
 
 
 class HallFollower:
@@ -410,47 +382,10 @@ class HallFollower:
     # --- perception ----------------------------------------------------------------------------
     def perceive(self, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike) -> Perception:
         """Summarize one scan (ranges from the robot centre [m], bearings [rad], robot frame)."""
-        c = self.config
-        r = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
-        a = np.asarray(angles_rad, dtype=np.float64).reshape(-1)
-        if r.shape != a.shape or r.size == 0:
-            raise HallFollowerError(
-                f"update: ranges ({r.size}) and angles ({a.size}) must be non-empty and match"
-            )
-        if not np.all(np.isfinite(a)):
-            raise HallFollowerError("update: angles_rad contains a NaN or infinite bearing")
-        r = np.where(np.isnan(r) | (r <= 0), np.inf, r)
-        a = wrap_angles(a)
-        ok = np.isfinite(r)
-        rr = np.where(ok, r, 0.0)
-        x = np.where(ok, rr * np.cos(a), np.nan)
-        y = np.where(ok, rr * np.sin(a), np.nan)
-
-        ahead = int(np.argmin(np.abs(a)))
-        front_free = float(r[ahead])
-        front = front_free
-        in_path = ok & (np.nan_to_num(x) > 0)
-        in_path &= np.abs(np.nan_to_num(y)) <= c.robot_radius_m + c.path_margin_m
-        if np.any(in_path):
-            front = min(front, float(np.min(x[in_path])))
-
-        def side(sign: float) -> tuple[bool, float, float | None]:
-            off = np.abs(wrap_angles(a - sign * math.pi / 2.0))
-            perp = int(np.argmin(off))
-            perp_m = float(r[perp] * abs(math.sin(a[perp])))
-            is_open = not perp_m <= c.open_side_m
-            sel = ok & (off <= math.radians(c.side_half_angle_deg))
-            sel &= np.abs(np.nan_to_num(y)) <= c.open_side_m
-            pts = np.stack([x[sel], y[sel]], axis=1)
-            dist, ang = _fit_wall(pts, math.inf if is_open else perp_m, c.fit_tolerance_m)
-            return is_open, dist, ang
-
-        l_open, l_dist, l_ang = side(1.0)
-        r_open, r_dist, r_ang = side(-1.0)
-        wall_angle = None  # only two parallel walls are trusted as a hallway's direction
-        if l_ang is not None and r_ang is not None and abs(l_ang - r_ang) <= _PARALLEL_RAD:
-            wall_angle = 0.5 * (l_ang + r_ang)
-        return Perception(front, front_free, l_open, r_open, l_dist, r_dist, wall_angle)
+        try:
+            return perceive(ranges_m, angles_rad, self.config.perception)
+        except PerceptionError as exc:
+            raise HallFollowerError(str(exc)) from None
 
     # --- control -------------------------------------------------------------------------------
     def update(

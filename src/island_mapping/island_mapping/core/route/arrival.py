@@ -10,15 +10,11 @@ from collections.abc import Callable, Generator
 from dataclasses import dataclass, replace
 
 import numpy as np
+from island_msgs_py.geometry import closest_on_segments, from_frame
 from island_msgs_py.types import FloatArray, Island, Pose2D, wrap_angle
 
 from island_mapping.core.lines import thin_evenly
-from island_mapping.core.localize import (
-    LocalizationResult,
-    LocalizeConfig,
-    closest_on_segments,
-    localize,
-)
+from island_mapping.core.localize import LocalizationResult, LocalizeConfig, localize
 from island_mapping.core.route.config import NavigateConfig
 from island_mapping.core.route.motion import Command, Drive, go_to, look_around
 
@@ -87,8 +83,7 @@ def unconstrained_axis_rad(island: Island, points_robot: FloatArray, pose: Pose2
     The eigenvector of the smallest eigenvalue of sum n n^T over the matched points (n the unit
     direction from a point to its nearest model segment): in a hallway, the hallway's axis.
     """
-    c, s = math.cos(pose.theta), math.sin(pose.theta)
-    pts = points_robot @ np.array([[c, s], [-s, c]]) + np.array([pose.x, pose.y])
+    pts = from_frame(points_robot, pose)
     _, foot, dist = closest_on_segments(pts, island.model.segments)
     ok = (dist <= cfg.max_match_dist_m) & (dist > 1e-6)
     if not np.any(ok):

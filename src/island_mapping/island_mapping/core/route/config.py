@@ -6,17 +6,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from island_mapping.core.localize import LocalizeConfig, Solver
+from island_mapping.core.localize import LocalizeConfig, point_to_line_config
 
 
 class NavigateError(ValueError):
     """Bad input to route following (the message names what was wrong)."""
-
-
-def _point_to_line() -> LocalizeConfig:
-    """Localization with the Gauss-Newton point-to-line step (the Dudek-MacKenzie step reaches
-    the same fixed point but often needs more than its iteration limit)."""
-    return LocalizeConfig(solver=Solver.POINT_TO_LINE)
 
 
 @dataclass(frozen=True)
@@ -130,7 +124,7 @@ class NavigateConfig:
         default=900.0, metadata={"help": "simulated time limit of one edge [s]"}
     )
     localize: LocalizeConfig = field(
-        default_factory=_point_to_line,
+        default_factory=point_to_line_config,
         metadata={"help": "line-model localization (point-to-line Gauss-Newton)"},
     )
 

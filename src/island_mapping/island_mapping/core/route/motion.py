@@ -20,6 +20,7 @@ from collections.abc import Generator
 from dataclasses import dataclass, field
 
 import numpy as np
+from island_msgs_py.geometry import ranges_to_points, to_frame
 from island_msgs_py.hall_perception import HallPerceptionConfig, perceive
 from island_msgs_py.types import ControlStrategy, FloatArray, Pose2D, PrimitiveKind, wrap_angle
 
@@ -71,11 +72,7 @@ class Sense:
 
     def points_odom(self) -> FloatArray:
         """Echoes of the latest scan in the odometry frame, (N, 2) [m]."""
-        o = self.odom
-        a = self.angles_rad + o.theta
-        ok = np.isfinite(self.ranges_m)
-        r = self.ranges_m[ok]
-        return np.stack([o.x + r * np.cos(a[ok]), o.y + r * np.sin(a[ok])], axis=1)
+        return ranges_to_points(self.ranges_m, self.angles_rad, self.odom)
 
 
 @dataclass
@@ -204,11 +201,5 @@ def look_around(d: Drive) -> Generator[Command, None, FloatArray]:
         last = th
         pts.append(d.sense.points_odom())
     yield from step(d, 0.0, 0.0)
-    return to_robot_frame(np.concatenate(pts, axis=0), d.sense.odom)
+    return to_frame(np.concatenate(pts, axis=0), d.sense.odom)
 
-
-def to_robot_frame(points_odom: FloatArray, pose: Pose2D) -> FloatArray:
-    """Points [m] in the odometry frame -> the frame of the robot at `pose`."""
-    c, s = math.cos(pose.theta), math.sin(pose.theta)
-    dx = points_odom - np.array([pose.x, pose.y])
-    return np.stack([c * dx[:, 0] + s * dx[:, 1], -s * dx[:, 0] + c * dx[:, 1]], axis=1)
