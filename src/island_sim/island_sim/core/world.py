@@ -508,7 +508,8 @@ def world_from_dict(data: dict[str, Any], source: str = "<dict>") -> World:
 def load_world(spec: str | Path, resolution_m: float | None = None) -> World:
     """A world from a built-in name or a file.
 
-    Built-ins: paper_fig3, paper_fig4, corridor, square_room, t_junction.
+    Built-ins: paper_fig3, paper_fig4, corridor, square_room, t_junction; generated offices
+    `gen:office:seed=N,scale=S` (`generate.py`).
     Files: YAML/JSON with `segments` (see `world_from_dict`), or with `verts` (HouseExpo), or
     with `image` (a ROS map_server YAML: image path relative to the file, `resolution` [m/px],
     `origin` [x, y, theta]); occupancy images .pgm/.png with `resolution_m` [m/px] (default
@@ -518,6 +519,10 @@ def load_world(spec: str | Path, resolution_m: float | None = None) -> World:
 
     if isinstance(spec, str) and spec in worlds_builtin.BUILTIN_WORLDS:
         return worlds_builtin.builtin_world(spec)
+    if isinstance(spec, str) and spec.startswith("gen:"):
+        from island_sim.core.generate import generated_world
+
+        return generated_world(spec)
     path = Path(spec)
     suffix = path.suffix.lower()
     if not path.exists():
