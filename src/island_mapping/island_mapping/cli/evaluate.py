@@ -142,8 +142,8 @@ def _connected_pairs(graph: TopoGraph, pairs: list[Pair]) -> list[Pair]:
     return [p for p in pairs if nx.has_path(g, p[0], p[1])]
 
 
-def run(args: argparse.Namespace) -> int:
-    map_dir = Path(args.map)
+def _load_run(map_dir: Path) -> tuple[dict[str, Any], TopoGraph, list[Any]]:
+    """summary.json, graph.json and the builder events of a run directory; CliError if not."""
     if not map_dir.is_dir():
         raise CliError(f"--map {map_dir}: not a directory")
     summary = _read_json(map_dir / "summary.json")
@@ -153,6 +153,28 @@ def run(args: argparse.Namespace) -> int:
         graph = TopoGraph.load_json(map_dir / "graph.json")
     except (GraphError, GraphFormatError, OSError, ValueError) as exc:
         raise CliError(f"{map_dir / 'graph.json'}: {exc}") from None
+    events = summary.get("builder_events")
+    if not isinstance(events, list):
+        raise CliError(f"{map_dir / 'summary.json'}: no builder_events list (written by "
+                       "`islands explore` since it evaluates maps; re-run the exploration)")
+    return summary, graph, events
+
+
+def _start(args: argparse.Namespace, summary: Mapping[str, Any], world: World) -> Pose2D:
+    """--start, else the run's start pose, else the world's."""
+    if args.start:
+        return parse_pose(args.start)
+    if isinstance(summary.get("start_pose"), dict):
+        try:
+            return pose_from_dict(summary["start_pose"], "summary.json start_pose")
+        except GraphFormatError as exc:
+            raise CliError(str(exc)) from None
+    return world.start_pose
+
+
+def run(args: argparse.Namespace) -> int:
+    map_dir = Path(args.map)
+    summary, graph, events = _load_run(map_dir)
     spec = args.world or summary.get("world_spec", "")
     if not spec:
         raise CliError("--world is required (summary.json names no world_spec)")
@@ -161,19 +183,7 @@ def run(args: argparse.Namespace) -> int:
         world = load_world(spec, resolution)
     except WorldError as exc:
         raise CliError(str(exc)) from None
-    if args.start:
-        start = parse_pose(args.start)
-    elif isinstance(summary.get("start_pose"), dict):
-        try:
-            start = pose_from_dict(summary["start_pose"], "summary.json start_pose")
-        except GraphFormatError as exc:
-            raise CliError(str(exc)) from None
-    else:
-        start = world.start_pose
-    events = summary.get("builder_events")
-    if not isinstance(events, list):
-        raise CliError(f"{map_dir / 'summary.json'}: no builder_events list (written by "
-                       "`islands explore` since it evaluates maps; re-run the exploration)")
+    start = _start(args, summary, world)
     try:
         pairs = route_pairs_from_summary(summary)
     except WorldEvalError as exc:

@@ -255,43 +255,49 @@ def _add_rooms(b: _Builder, rng: np.random.Generator, edges: list[tuple[int, int
                present: set[int], nx: int, ny: int) -> None:
     """Rooms in every lattice cell along one pair of opposite corridors, and outside the
     boundary corridors."""
-    by_nodes = {edges[k]: k for k in present}
-    xs, ys = b.xs, b.ys
-
-    def has(a: int, c: int) -> bool:
-        return (a, c) in by_nodes
-
-    def inner_depth(span: float) -> float:
-        return (span - CORRIDOR_M - 3 * WALL_M) / 2
-
+    have = {edges[k] for k in present}
     for j in range(ny - 1):
         for i in range(nx - 1):
-            n00, n10, n01 = j * nx + i, j * nx + i + 1, (j + 1) * nx + i
-            n11 = n01 + 1
-            if rng.random() < 0.5:  # rooms along the cell's south and north corridors
-                d = inner_depth(ys[j + 1] - ys[j])
-                if has(n00, n10):
-                    b.rooms_along(xs[i], xs[i + 1], ys[j], True, +1, d)
-                if has(n01, n11):
-                    b.rooms_along(xs[i], xs[i + 1], ys[j + 1], True, -1, d)
-            else:  # along its west and east corridors
-                d = inner_depth(xs[i + 1] - xs[i])
-                if has(n00, n01):
-                    b.rooms_along(ys[j], ys[j + 1], xs[i], False, +1, d)
-                if has(n10, n11):
-                    b.rooms_along(ys[j], ys[j + 1], xs[i + 1], False, -1, d)
+            _cell_rooms(b, rng, have, i, j, nx)
+    _outer_rooms(b, have, nx, ny)
+
+
+def _cell_rooms(b: _Builder, rng: np.random.Generator, have: set[tuple[int, int]], i: int,
+                j: int, nx: int) -> None:
+    """Rooms of lattice cell (i, j): along its south and north corridors or (even odds) its
+    west and east ones, as deep as leaves a wall between facing rooms."""
+    xs, ys = b.xs, b.ys
+    n00, n10, n01 = j * nx + i, j * nx + i + 1, (j + 1) * nx + i
+    n11 = n01 + 1
+    if rng.random() < 0.5:
+        d = (ys[j + 1] - ys[j] - CORRIDOR_M - 3 * WALL_M) / 2
+        if (n00, n10) in have:
+            b.rooms_along(xs[i], xs[i + 1], ys[j], True, +1, d)
+        if (n01, n11) in have:
+            b.rooms_along(xs[i], xs[i + 1], ys[j + 1], True, -1, d)
+    else:
+        d = (xs[i + 1] - xs[i] - CORRIDOR_M - 3 * WALL_M) / 2
+        if (n00, n01) in have:
+            b.rooms_along(ys[j], ys[j + 1], xs[i], False, +1, d)
+        if (n10, n11) in have:
+            b.rooms_along(ys[j], ys[j + 1], xs[i + 1], False, -1, d)
+
+
+def _outer_rooms(b: _Builder, have: set[tuple[int, int]], nx: int, ny: int) -> None:
+    """Rooms outside the lattice along its boundary corridors."""
+    xs, ys = b.xs, b.ys
     top = ROOM_DEPTH_M[1]
     for i in range(nx - 1):
-        if has(i, i + 1):
+        if (i, i + 1) in have:
             b.rooms_along(xs[i], xs[i + 1], ys[0], True, -1, top)
         k = (ny - 1) * nx + i
-        if has(k, k + 1):
+        if (k, k + 1) in have:
             b.rooms_along(xs[i], xs[i + 1], ys[-1], True, +1, top)
     for j in range(ny - 1):
-        if has(j * nx, (j + 1) * nx):
+        if (j * nx, (j + 1) * nx) in have:
             b.rooms_along(ys[j], ys[j + 1], xs[0], False, -1, top)
         k = j * nx + nx - 1
-        if has(k, k + nx):
+        if (k, k + nx) in have:
             b.rooms_along(ys[j], ys[j + 1], xs[-1], False, +1, top)
 
 
