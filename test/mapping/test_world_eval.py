@@ -115,6 +115,13 @@ def test_route_length_ratio_against_the_true_shortest_path() -> None:
     assert ev.routes[0].true_length_m == pytest.approx(13.0, abs=0.1)
     assert ev.route_length_ratio == pytest.approx(1.1, abs=0.01)
     assert ev.route_success_rate == pytest.approx(0.5)
+    # two islands at one place: a route between them has no ratio (it would divide by ~0)
+    near = TopoGraph.from_parts([_island(0, 2.0, 1.0), _island(1, 2.3, 1.0), _island(2, 9, 1)],
+                                [_edge(0, 2, 7.5), _edge(2, 1, 7.0)])
+    ev = evaluate_map(world, world_places(world), near, [], [(0, 1, None), (0, 2, None)])
+    assert math.isnan(ev.routes[0].ratio) and ev.routes[0].map_length_m == 14.5
+    assert ev.route_length_ratio == pytest.approx(7.5 / 7.0, abs=0.01)
+    assert ev.to_dict()["routes_without_ratio"] == 1
 
 
 def test_maps_and_events_that_cannot_be_evaluated_are_clear_errors() -> None:

@@ -16,7 +16,8 @@ robot's true pose at each, and the island pairs whose routes were followed. Figu
   world's (holes of its reachable free space);
 - **routes**: success of the followed routes (from the route evaluation), and the length of
   each planned route by the map (sum of its edges' length_m) against the shortest path between
-  the two islands' true origins through the free space.
+  the two islands' true origins through the free space (no ratio for two islands at one place,
+  less than 2.5 m apart: it would divide by almost nothing).
 """
 
 from __future__ import annotations
@@ -59,6 +60,11 @@ class WorldEvalConfig:
         metadata={"help": "a recognition that puts the island's origin farther than this from "
                           "its true origin is a false merge [m]"},
     )
+    min_route_m: float = field(
+        default=2.5,
+        metadata={"help": "routes between true origins closer than this (two islands at one "
+                          "place) have no length ratio: it would divide by almost nothing [m]"},
+    )
     path_snap_m: float = field(
         default=0.5,
         metadata={"help": "an island origin closer to a wall than the robot's clearance is "
@@ -91,10 +97,13 @@ class RouteLength:
     success: bool | None  # None: the route was not followed
     map_length_m: float  # sum of the planned route's edge lengths
     true_length_m: float  # shortest path between the true origins through free space
+    min_true_m: float = 0.0  # shorter true paths have no ratio
 
     @property
     def ratio(self) -> float:
-        return self.map_length_m / self.true_length_m if self.true_length_m > 0 else math.nan
+        """map / true length; NaN when the true path is shorter than min_true_m (or none)."""
+        ok = self.true_length_m > 0 and self.true_length_m >= self.min_true_m
+        return self.map_length_m / self.true_length_m if ok else math.nan
 
 
 @dataclass(frozen=True)
@@ -140,9 +149,16 @@ class MapEvaluation:
 
     @property
     def route_length_ratio(self) -> float:
-        """Mean over the routes of map length / true shortest path."""
+        """Mean over the routes (with a ratio) of map length / true shortest path."""
         ratios = [r.ratio for r in self.routes if math.isfinite(r.ratio)]
         return float(np.mean(ratios)) if ratios else math.nan
+
+    @property
+    def route_length_ratio_total(self) -> float:
+        """Summed map length / summed true length over the routes with a ratio."""
+        rs = [r for r in self.routes if math.isfinite(r.ratio)]
+        true = sum(r.true_length_m for r in rs)
+        return sum(r.map_length_m for r in rs) / true if rs and true > 0 else math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON form (NaN -> None)."""
@@ -172,6 +188,8 @@ class MapEvaluation:
             "route_success_rate": num(self.route_success_rate),
             "route_length_ratio_mean": num(self.route_length_ratio),
             "route_length_ratio_max": num(max(ratios)) if ratios else None,
+            "route_length_ratio_total": num(self.route_length_ratio_total),
+            "routes_without_ratio": len(self.routes) - len(ratios),
             "per_route": [
                 {"source": r.source, "target": r.target, "success": r.success,
                  "map_length_m": num(r.map_length_m), "true_length_m": num(r.true_length_m),
@@ -272,9 +290,10 @@ def map_cycle_rank(graph: TopoGraph) -> int:
 
 def route_lengths(graph: TopoGraph, places: WorldPlaces, origins: Mapping[int, Pose2D],
                   pairs: Sequence[tuple[int, int, bool | None]],
-                  snap_m: float) -> list[RouteLength]:
+                  snap_m: float, min_route_m: float = 0.0) -> list[RouteLength]:
     """Map length of the planned route (edges usable backwards, as routes are followed) and
-    the true shortest path between the islands' true origins, per (source, target, success)."""
+    the true shortest path between the islands' true origins, per (source, target, success);
+    a ratio only for true paths of at least `min_route_m` [m]."""
     g2 = with_reverse_edges(graph)
     out = []
     for a, b, ok in pairs:
@@ -290,7 +309,8 @@ def route_lengths(graph: TopoGraph, places: WorldPlaces, origins: Mapping[int, P
                 (origins[a].x, origins[a].y), (origins[b].x, origins[b].y), snap_m)
         except FreeSpaceError:
             true_m = math.nan  # an origin off the reachable free space: no ratio
-        out.append(RouteLength(a, b, ok, float(sum(e.length_m for e in route.edges)), true_m))
+        out.append(RouteLength(a, b, ok, float(sum(e.length_m for e in route.edges)), true_m,
+                               min_route_m))
     return out
 
 
@@ -318,7 +338,8 @@ def evaluate_map(world: World, places: WorldPlaces, graph: TopoGraph,
         revisits=len(revisits),
         map_cycle_rank=map_cycle_rank(graph),
         world_cycle_rank=places.cycle_rank,
-        routes=tuple(route_lengths(graph, places, origins, route_pairs, c.path_snap_m)),
+        routes=tuple(route_lengths(graph, places, origins, route_pairs, c.path_snap_m,
+                                   c.min_route_m)),
         place_xy=tuple((p.kind.value, p.x_m, p.y_m) for p in places.places),
     )
 
