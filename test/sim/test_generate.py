@@ -1,4 +1,4 @@
-"""Generated office worlds: deterministic per (seed, scale), connected, with the loops they claim."""
+"""Generated offices: deterministic per (seed, scale), connected, with the loops they claim."""
 
 from __future__ import annotations
 
