@@ -4,7 +4,9 @@ cycle rank and route lengths."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
+import numpy as np
 import pytest
 from island_mapping.core.graph import TopoGraph
 from island_mapping.evaluation.world_eval import (
@@ -12,6 +14,7 @@ from island_mapping.evaluation.world_eval import (
     compact_events,
     evaluate_map,
     false_merges,
+    known_free_of,
     map_cycle_rank,
     revisits_from_events,
 )
@@ -149,3 +152,18 @@ def test_compact_events_keep_ids_not_models() -> None:
     assert out[0] == {"kind": "island_accepted", "island_id": 3,
                       "truth_pose": {"x": 1, "y": 2, "theta": 0}}
     assert out[1]["edge"] == {"source": 1, "target": 3, "length_m": 4.0}
+
+
+def test_known_free_pixels_of_an_image_world_and_its_map_yaml(tmp_path: Path) -> None:
+    img = np.full((10, 20), 255, dtype=np.uint8)  # row 0 at the top
+    img[:, 10:] = 205  # the east half unknown (grey)
+    (tmp_path / "m.pgm").write_bytes(b"P5\n20 10\n255\n" + img.tobytes())
+    allowed = known_free_of(tmp_path / "m.pgm", 0.5)
+    assert allowed is not None
+    assert allowed(np.array([[2.0, 2.0], [8.0, 2.0], [12.0, 2.0]])).tolist() == [
+        True, False, False]  # 10 px of 0.5 m are known free: x < 5 m
+    (tmp_path / "m.yaml").write_text("image: m.pgm\nresolution: 0.5\norigin: [-5.0, 0.0, 0]\n")
+    shifted = known_free_of(tmp_path / "m.yaml")
+    assert shifted is not None
+    assert shifted(np.array([[-3.0, 2.0], [2.0, 2.0]])).tolist() == [True, False]
+    assert known_free_of("paper_fig4") is None
