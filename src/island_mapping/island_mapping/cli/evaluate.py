@@ -214,8 +214,8 @@ def explore_figures(world: World, spec: str, resolution_m: float | None, start: 
         places = truth_places(world, spec, resolution_m, start)
         pairs = route_pairs_from_summary({"routes": routes})
         return evaluate_and_draw(world, places, graph, events, pairs, out, title, start)
-    except (CliError, WorldEvalError) as exc:
-        return {"error": str(exc)}
+    except (CliError, ValueError) as exc:  # WorldEvalError, FreeSpaceError, WorldError...
+        return {"error": str(exc)}  # the run's own results are still written
 
 
 def check_image_resolution(image: Path, resolution_m: float) -> None:
