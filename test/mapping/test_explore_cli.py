@@ -63,6 +63,14 @@ def test_explore_writes_the_map_figures_recording_and_summary(
     assert reader.topics["/sonar/scan"].message_count >= 1400  # 10 Hz for 150 s
     assert 140.0 <= reader.duration_ns * 1e-9 <= 151.0
     assert "results in" in capsys.readouterr().out
+    # The map measured against the world's places, in the summary and by `islands evaluate`.
+    ev = summary["world_evaluation"]
+    assert ev["places"] == 36 and ev["world_cycle_rank"] == 3 and ev["islands"] == len(islands)
+    assert ev["covered_places"] >= 1 and ev["false_merges"] == 0
+    assert (out / "places.png").stat().st_size > 0
+    assert main(["evaluate", "--map", str(out), "--out", str(tmp_path / "ev")]) == 0
+    again = json.loads((tmp_path / "ev" / "evaluation.json").read_text())
+    assert {k: again[k] for k in ev} == ev
 
 
 def test_explore_rejects_a_bad_world(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

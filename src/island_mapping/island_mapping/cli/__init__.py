@@ -20,6 +20,7 @@ SUBCOMMANDS: tuple[tuple[str, str, str], ...] = (
     ("measure", "measure", "distinctiveness measure R (or the Fisher score) at points"),
     ("fig3", "fig3", "R map, localization-confidence map and residual plot (paper Figs. 2, 3)"),
     ("explore", "explore", "explore a world, build islands and the topological map (main job)"),
+    ("evaluate", "evaluate", "measure an explored map against the world's places (issue 16)"),
     ("graph", "graph", "inspect, convert and plan on saved island graphs"),
     ("bag", "bag", "MCAP run recordings: info, echo, play, recover, import"),
     ("topic", "topic", "live topics without ros2cli: list, echo"),

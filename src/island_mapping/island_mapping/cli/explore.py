@@ -9,7 +9,10 @@ island localizer, topological graph server, recorder), then writes to --out:
   strategies.txt                             the links' control strategies, like Table 1
   run_bag/                                   the MCAP recording of every topic (rosbag2 layout)
   summary.json                               counts, true island origins, where islands landed,
-                                             route-following success vs global odometry
+                                             route-following success vs global odometry, the
+                                             builder events and the map measured against the
+                                             world's places (`islands evaluate`)
+  places.png                                 the world's places, covered or missed
 """
 
 from __future__ import annotations
@@ -49,7 +52,12 @@ PROGRESS_STEPS = 1000
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.description = __doc__
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
-    parser.add_argument("--world", default="paper_fig4", help="world file or built-in name")
+    parser.add_argument("--world", default="paper_fig4",
+                        help="world file, built-in name or gen:office:seed=N,scale=S")
+    parser.add_argument("--resolution", type=float, default=None,
+                        help="image worlds: metres per pixel (default 0.1)")
+    parser.add_argument("--start", default="", metavar="X,Y,THETA",
+                        help="start pose [m, m, rad] (default: the world's)")
     parser.add_argument("--out", required=True, help="output directory (created)")
     parser.add_argument("--seed", type=int, default=1, help="seed of every simulated noise")
     parser.add_argument("--sim-seconds", type=float, default=900.0,
@@ -126,21 +134,35 @@ def _edge_summary(e: EdgeResult) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from island_mapping.cli.evaluate import (
+        check_image_resolution,
+        explore_figures,
+        map_world_file,
+        parse_pose,
+    )
+    from island_mapping.evaluation.world_eval import compact_events
     from island_mapping.runner import RunConfig, RunError, RunParameterError, resolve_domain_id
     from island_mapping.runner import run as run_nodes
     from island_mapping.viz.explore import exploration_figure, strategies_table, topology_figure
 
-    try:
-        world = load_world(args.world)
-    except WorldError as exc:
-        raise CliError(str(exc)) from None
     if not args.sim_seconds > 0:
         raise CliError(f"--sim-seconds must be > 0, got {args.sim_seconds}")
     params = parse_node_assignments(args.param, "--param")
     builder = params.setdefault("island_builder_node", {})
     builder.update(parse_assignments(args.builder_param, "--builder-param"))
+    try:
+        world = load_world(args.world, args.resolution)
+    except WorldError as exc:
+        raise CliError(str(exc)) from None
+    start = parse_pose(args.start) if args.start else world.start_pose
+    if args.start:
+        params.setdefault("odometry_node", {})["start_pose"] = args.start
     out = Path(args.out)
+    if args.resolution is not None:
+        check_image_resolution(Path(args.world), args.resolution)
     out.mkdir(parents=True, exist_ok=True)
+    spec = (str(map_world_file(Path(args.world), args.resolution, out))
+            if args.resolution is not None else args.world)
     bag_dir = out / "run_bag"
     if bag_dir.exists() and not args.no_record:
         raise CliError(f"{bag_dir} exists: choose another --out or remove it")
@@ -150,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
     domain = resolve_domain_id(args.domain_id)
     print(f"islands explore: ROS_DOMAIN_ID={domain} (watch with "
           f"`ROS_DOMAIN_ID={domain} islands topic echo /hall_follower/strategy`)", file=sys.stderr)
-    cfg = RunConfig(world=args.world, seed=args.seed, sim_seconds=args.sim_seconds,
+    cfg = RunConfig(world=spec, seed=args.seed, sim_seconds=args.sim_seconds,
                     record_dir="" if args.no_record else str(bag_dir),
                     wall_timeout_s=args.wall_timeout, domain_id=domain, params=params)
     try:
@@ -200,6 +222,12 @@ def run(args: argparse.Namespace) -> int:
         ),
         "routes": routes,
         "bag": str(rec.bag_dir) if rec.bag_dir is not None else None,
+        "world_spec": spec,
+        "resolution_m": args.resolution,
+        "start_pose": pose_to_dict(start),
+        "world_evaluation": explore_figures(world, spec, args.resolution, start, graph,
+                                            rec.events, routes, out, title),
+        "builder_events": compact_events(rec.events),
     }
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     print(json.dumps({k: summary[k] for k in (

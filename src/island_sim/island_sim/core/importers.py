@@ -24,6 +24,7 @@ from island_msgs_py.geometry import clearance_m, closest_on_segment_rows
 from island_msgs_py.types import FloatArray
 from scipy import ndimage
 
+from island_sim.core.freespace import FreeSpaceError, default_start_pose, known_free_allowed
 from island_sim.core.world import (
     World,
     WorldError,
@@ -425,6 +426,12 @@ def import_image(path: str | Path, config: ImageImportConfig | None = None) -> W
     world = World(segs, name=p.stem)
     if not np.any(free):
         return World(segs, name=p.stem, start_pose=enclosed_start_pose(world))
+    try:  # in the largest enclosed known-free region, not in a closed room
+        start = default_start_pose(world, allowed=known_free_allowed(free, cfg.resolution_m,
+                                                                     origin))
+        return World(world.segments, name=p.stem, start_pose=start)
+    except FreeSpaceError:
+        pass  # no room for the robot anywhere: the freest pixel
     # Clearance of free pixels from anything that is not known free [m].
     clearance_px = ndimage.distance_transform_edt(np.pad(free, 1))[1:-1, 1:-1]
     iy, ix = np.nonzero(free)
@@ -451,7 +458,10 @@ def import_houseexpo(path: str | Path, data: dict[str, Any] | None = None) -> Wo
         raise WorldError(f"{p}: 'verts' has fewer than 3 distinct points")
     name = str(data.get("id", p.stem)) or p.stem
     world = World(segs, name=name)
-    # Start: the interior grid point farthest from the walls.
+    try:  # in the largest enclosed free region
+        return World(world.segments, name=name, start_pose=default_start_pose(world))
+    except FreeSpaceError:
+        pass  # no room for the robot anywhere: the interior point farthest from the walls
     x0, y0, x1, y1 = world.bounds
     step = 0.1
     gx, gy = np.meshgrid(np.arange(x0 + step / 2, x1, step), np.arange(y0 + step / 2, y1, step))

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from island_sim.core import importers, worlds_builtin
+from island_sim.core.generate import SPEC_PREFIX, generated_world
 from island_sim.core.world import World, WorldError, read_structured, world_from_dict
 
 _STRUCTURED_SUFFIXES = (".yaml", ".yml", ".json")
@@ -20,7 +21,8 @@ _IMAGE_SUFFIXES = (".pgm", ".png")
 def load_world(spec: str | Path, resolution_m: float | None = None) -> World:
     """A world from a built-in name or a file.
 
-    Built-ins: paper_fig3, paper_fig4, corridor, square_room, t_junction.
+    Built-ins: paper_fig3, paper_fig4, corridor, square_room, t_junction; generated offices
+    `gen:office:seed=N,scale=S` (`generate.py`).
     Files: YAML/JSON with `segments` (see `world_from_dict`), or with `verts` (HouseExpo), or
     with `image` (a ROS map_server YAML: image path relative to the file, `resolution` [m/px],
     `origin` [x, y, theta]); occupancy images .pgm/.png with `resolution_m` [m/px] (default
@@ -28,6 +30,8 @@ def load_world(spec: str | Path, resolution_m: float | None = None) -> World:
     """
     if isinstance(spec, str) and spec in worlds_builtin.BUILTIN_WORLDS:
         return worlds_builtin.builtin_world(spec)
+    if isinstance(spec, str) and spec.startswith(SPEC_PREFIX):
+        return generated_world(spec)
     path = Path(spec)
     suffix = path.suffix.lower()
     if not path.exists():
