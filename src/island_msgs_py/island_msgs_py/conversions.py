@@ -48,6 +48,7 @@ from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
 
 from island_msgs_py import json_io
+from island_msgs_py.errors import InputError
 from island_msgs_py.types import (
     Edge,
     ExitState,
@@ -82,7 +83,7 @@ EXIT_COLOURS = {  # an exit's arrow by its state: still to explore, done, not wo
 }
 
 
-class ConversionError(ValueError):
+class ConversionError(InputError):
     """A message (or value for one) is malformed; the message says which field and why."""
 
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.raycast import RayCaster
 from island_msgs_py.types import FloatArray
 
@@ -40,7 +41,7 @@ _RAYS_PER_CHUNK = 1 << 13
 _TINY_INFO = 1e-12
 
 
-class FisherError(ValueError):
+class FisherError(InputError):
     """A FisherConfig value or an argument is invalid (the message names it)."""
 
 

@@ -14,6 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.raycast import RayCaster, RayHits, SegmentIndex, raycast
 from island_msgs_py.types import FloatArray, as_segments
 
@@ -27,7 +28,7 @@ _TILE_MIN_SEGMENTS = 12
 _TILE_MAX_SUBSET = 64
 
 
-class MeasureError(ValueError):
+class MeasureError(InputError):
     """Bad input to the measure (the message names the argument and the problem)."""
 
 

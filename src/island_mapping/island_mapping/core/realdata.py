@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.geometry import (
     compose_poses,
     from_frame,
@@ -48,7 +49,7 @@ INTEL_LOG_TO_UNIX_S = 976052857.338
 SCAN_MATCH_TOLERANCE_S = 0.010
 
 
-class RealDataError(ValueError):
+class RealDataError(InputError):
     """Malformed real-data input; the message names the file, the line and the problem."""
 
 
