@@ -198,6 +198,12 @@ def load_json(text: str | bytes, source: str, error: ErrorType = InputError,
         _fail(error, str(exc))
 
 
+def read_json(path: str | os.PathLike[str], error: ErrorType = InputError,
+              max_bytes: int = MAX_TEXT_FILE_BYTES, what: str = "JSON file") -> Any:
+    """The value of a JSON file, within the limits (see read_text and load_json)."""
+    return load_json(read_text(path, max_bytes, error, what), str(path), error, max_bytes)
+
+
 def read_structured(path: str | os.PathLike[str], error: ErrorType = InputError,
                     max_bytes: int = MAX_TEXT_FILE_BYTES, what: str = "file") -> dict[str, Any]:
     """The top-level mapping of a YAML file, or of a JSON file (`.json`), within the limits."""
