@@ -34,6 +34,8 @@ from island_msgs_py.types import FloatArray, ModelType
 
 from island_mapping.core.fisher import FisherConfig, fisher_measure
 from island_mapping.core.rays import (
+    MAX_EPS_STEPS,
+    MIN_ANGULAR_RES_DEG,
     MeasureError,
     as_caster,
     as_points,
@@ -107,14 +109,20 @@ class MeasureConfig:
             )
         if self.max_range_m <= 0:
             raise MeasureError(f"MeasureConfig.max_range_m: must be > 0, got {self.max_range_m}")
-        if not 0.0 < self.angular_res_deg <= 90.0:
+        if not MIN_ANGULAR_RES_DEG <= self.angular_res_deg <= 90.0:
             raise MeasureError(
-                f"MeasureConfig.angular_res_deg: must be in (0, 90] deg, got {self.angular_res_deg}"
+                f"MeasureConfig.angular_res_deg: must be in [{MIN_ANGULAR_RES_DEG:g}, 90] deg "
+                f"(the limit), got {self.angular_res_deg:g}"
             )
         if self.eps_m < 0:
             raise MeasureError(f"MeasureConfig.eps_m: must be >= 0, got {self.eps_m}")
         if self.eps_step_m <= 0:
             raise MeasureError(f"MeasureConfig.eps_step_m: must be > 0, got {self.eps_step_m}")
+        if self.eps_m / self.eps_step_m > MAX_EPS_STEPS:
+            raise MeasureError(
+                f"MeasureConfig: eps_m / eps_step_m must be <= {MAX_EPS_STEPS} (the limit: "
+                f"{(2 * MAX_EPS_STEPS + 1) ** 2} samples per point), got "
+                f"{self.eps_m / self.eps_step_m:g}")
 
     @property
     def n_rays(self) -> int:
