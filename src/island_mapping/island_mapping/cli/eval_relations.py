@@ -18,12 +18,12 @@ import dataclasses
 import json
 import math
 import sys
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from island_mapping.cli import CliError
+from island_mapping.cli.args import COUNT, SECONDS, SEED, check_output_dir
 from island_mapping.core import realdata as rd
 
 # Default bridging limit: about half the Intel log's median scan interval (3.35 s), so every
@@ -44,12 +44,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--place-recognition", action="store_true",
                         help="a lost robot first searches every island's model for its scan "
                              "(re-enters islands on revisits; slower)")
-    parser.add_argument("--seed", type=int, default=0,
+    parser.add_argument("--seed", type=SEED, default=0,
                         help="recorded only: the pipeline has no random step")
-    parser.add_argument("--bridge-s", type=float, default=DEFAULT_BRIDGE_S,
+    parser.add_argument("--bridge-s", type=SECONDS, default=DEFAULT_BRIDGE_S,
                         help="bridged scoring: a relation time at most this far from a localized "
                              "scan takes its fix plus raw odometry [s] (0 = off)")
-    parser.add_argument("--max-scans", type=int, default=None,
+    parser.add_argument("--max-scans", type=COUNT, default=None,
                         help="use only the first N scans (quick runs)")
 
 
@@ -155,9 +155,7 @@ def run(args: argparse.Namespace) -> int:
 
     from island_mapping.viz.realdata import plot_islands
 
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise CliError(f"--out {out}: exists and is not a directory")
+    out = check_output_dir(args.out)
     metrics = evaluate(args)
     island_run: rd.IslandRun = metrics.pop("_run")
     out.mkdir(parents=True, exist_ok=True)
