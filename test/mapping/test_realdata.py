@@ -14,7 +14,12 @@ import pytest
 from island_mapping.core import poses
 from island_mapping.core import relations as rel_core
 from island_mapping.core import sonar_ring as ring
-from island_mapping.core.builder.epsilon import OdometryErrorModel, fit_odometry_error_model
+from island_mapping.core.builder.epsilon import (
+    OdometryErrorModel,
+    RelativeCovariance,
+    fit_odometry_error_model,
+    propagate_covariances,
+)
 from island_mapping.core.builder.passive import PassiveBuilder, PassiveConfig, voxel_thin
 from island_mapping.logs import carmen, uci_sonar
 from island_mapping.logs import relations as rel_files
@@ -159,24 +164,39 @@ def test_parse_pose_track_reconstructs_raw_odometry() -> None:
 
 
 def passive_epsilons(steps: list[tuple[float, float, float]]) -> list[float]:
-    """Epsilon of the passive builder at each of the odometry poses `steps` (one empty scan
-    each: no island, no attempt)."""
+    """Epsilon of the passive builder at each of the odometry poses `steps`, their covariance
+    propagated by the default error model (one empty scan each: no island, no attempt)."""
     b = PassiveBuilder(PassiveConfig())
+    poses_ = np.array(steps, dtype=float)
+    covs = propagate_covariances(poses_, OdometryErrorModel())
     for k, (x, y, th) in enumerate(steps):
-        b.on_odometry(float(k), Pose2D(x, y, th), np.zeros((3, 3)))
+        b.on_odometry(float(k), Pose2D(x, y, th), covs[k])
         b.on_scan(float(k), np.zeros((0, 2)))
     return b.finish().epsilon_m.tolist()
 
 
 def test_epsilon_grows_with_travel_and_resets() -> None:
+    """Epsilon from the covariance the error model propagates (as an odometry would publish
+    it) through the live builder's relative-covariance tracker: 1 m straight adds half the
+    model's x-plus-y variance per axis; the next metre also swings the first metre's heading
+    variance sideways (var_y = b + a), faster than sqrt of the distance; turning adds too."""
     model = OdometryErrorModel()
     e0, e1, e2, e3 = passive_epsilons([(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (2.0, 0.0, 0.0),
                                         (2.0, 0.0, math.pi / 2)])
+    b, a = model.var_xy_per_m_m2, model.var_theta_per_m_rad2
     assert e0 == 0.0
-    expected = math.sqrt(model.var_xy_per_m_m2 + model.var_theta_per_m_rad2)
-    assert e1 == pytest.approx(expected)
+    assert e1 == pytest.approx(math.sqrt(b / 2))
+    assert e2 == pytest.approx(math.sqrt(b + a))
     assert e2 > e1 * math.sqrt(2)  # heading uncertainty makes the error grow faster than sqrt
     assert e3 > e2  # turning in place adds error too
+    tracker = RelativeCovariance()
+    for pose, cov in zip([Pose2D(*p) for p in ((0, 0, 0), (1, 0, 0), (2, 0, 0))],
+                         propagate_covariances(np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0.0]]),
+                                               model), strict=True):
+        tracker.update(pose, cov)
+    assert tracker.epsilon_m == pytest.approx(e2)  # the live builder's tracker, the same
+    tracker.reset()
+    assert tracker.epsilon_m == 0.0
 
 
 def test_fit_odometry_error_model_recovers_known_variances() -> None:

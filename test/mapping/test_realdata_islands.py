@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from island_mapping.core import relations as rd
 from island_mapping.core.builder import passive
+from island_mapping.core.builder.epsilon import propagate_covariances
 from island_mapping.core.builder.places import PlaceSearch
 from island_mapping.core.lines import fit_lines
 from island_mapping.core.poses import compose_poses, relative_poses, transform_points, wrap_angles
@@ -294,15 +295,17 @@ def test_a_fix_restarts_epsilon_and_the_scans_are_decided_online() -> None:
     after_fix = [j for j in range(1, raw.shape[0]) if run.scan_island[j - 1] >= 0
                  and j - 1 >= run.islands[run.scan_island[j - 1]].anchor_scan]
     assert len(after_fix) >= 5
+    covs = propagate_covariances(raw, offline.OfflineConfig().odometry)
     for j in after_fix:
         fresh = passive.PassiveBuilder(isl)
         for k in (j - 1, j):
-            fresh.on_odometry(times[k], Pose2D(*raw[k]), np.zeros((3, 3)))
+            fresh.on_odometry(times[k], Pose2D(*raw[k]), covs[k])
             fresh.on_scan(times[k], np.zeros((0, 2)))
-        assert run.epsilon_m[j] == pytest.approx(fresh.finish().epsilon_m[1], rel=1e-12)
+        assert run.epsilon_m[j] > 0.0
+        assert run.epsilon_m[j] == pytest.approx(fresh.finish().epsilon_m[1], rel=1e-9)
     b = passive.PassiveBuilder(isl)
     build, _ = offline.beam_points(ranges, offline.OfflineConfig(islands=isl))
     for k in range(4):
-        b.on_odometry(times[k], Pose2D(*raw[k]), np.zeros((3, 3)))
+        b.on_odometry(times[k], Pose2D(*raw[k]), covs[k])
         b.on_scan(times[k], build[k])
         assert b.run().scan_island.size == max(0, k + 1 - isl.half_window_scans)

@@ -15,7 +15,12 @@ import numpy as np
 import numpy.typing as npt
 from island_msgs_py.types import Pose2D
 
-from island_mapping.core.builder.epsilon import EvaluateFn, FitFn
+from island_mapping.core.builder.epsilon import (
+    EvaluateFn,
+    FitFn,
+    OdometryErrorModel,
+    propagate_covariances,
+)
 from island_mapping.core.builder.passive import (
     IslandRun,
     Localizer,
@@ -58,6 +63,11 @@ class OfflineConfig:
         default=0,
         metadata={"help": "beams kept for localizing scans in islands (0 = `beams`); e.g. 24 "
                   "localizes sonar-like scans (6.5 m range) in islands built from the laser [-]"},
+    )
+    odometry: OdometryErrorModel = field(
+        default_factory=OdometryErrorModel,
+        metadata={"help": "the raw odometry's error model, which propagates the covariance the "
+                  "log does not record (epsilon, eq. 3)"},
     )
     islands: PassiveConfig = field(
         default_factory=PassiveConfig, metadata={"help": "the passive builder"}
@@ -134,7 +144,8 @@ def build_islands_offline(
     progress: Callable[[int, int, int], None] | None = None,
 ) -> IslandRun:
     """Islands over a log's scans: ranges_m (S, B) [m] of FLASER geometry, raw_poses (S, 3) the
-    raw odometry at each scan, times_s (S,) [s], fed scan by scan to the passive builder.
+    raw odometry at each scan, times_s (S,) [s], fed scan by scan to the passive builder with
+    the covariance the odometry error model propagates along the raw odometry.
     `progress(scan, scans, islands)` is called after every scan when given."""
     cfg = config if config is not None else OfflineConfig()
     rng = np.asarray(ranges_m, dtype=np.float64)
@@ -148,10 +159,10 @@ def build_islands_offline(
         )
     build, fix = beam_points(rng, cfg)
     builder = PassiveBuilder(cfg.islands, localizer=localizer, fit=fitter, evaluate=evaluator)
-    no_cov = np.zeros((3, 3))
+    covs = propagate_covariances(raw, cfg.odometry)
     n = raw.shape[0]
     for i in range(n):
-        builder.on_odometry(float(t[i]), Pose2D(*(float(v) for v in raw[i])), no_cov)
+        builder.on_odometry(float(t[i]), Pose2D(*(float(v) for v in raw[i])), covs[i])
         builder.on_scan(float(t[i]), build[i], fix[i])
         if progress is not None and i > 0:
             progress(i, n, len(builder.islands))

@@ -152,12 +152,28 @@ class OdometryErrorModel:
                 raise BuilderError(
                     f"OdometryErrorModel.{name}: expected a number >= 0, got {v!r}")
 
-    def step_variances(self, distance_m: float, turn_rad: float) -> tuple[float, float]:
-        """(position variance x plus y [m^2], heading variance [rad^2]) an increment of
-        distance_m driven and |turn_rad| turned adds."""
-        turn = abs(turn_rad)
-        return (self.var_xy_per_m_m2 * distance_m + self.var_xy_per_rad_m2 * turn,
-                self.var_theta_per_m_rad2 * distance_m + self.var_theta_per_rad_rad2 * turn)
+    def step_noise(self, increment: FloatArray) -> FloatArray:
+        """Q (3x3): the noise an increment (dx [m], dy [m], dtheta [rad]) adds, isotropic in
+        x and y (the model's position variance is x plus y, so each axis gets half)."""
+        d = math.hypot(float(increment[0]), float(increment[1]))
+        turn = abs(float(increment[2]))
+        q_xy = self.var_xy_per_m_m2 * d + self.var_xy_per_rad_m2 * turn
+        q_th = self.var_theta_per_m_rad2 * d + self.var_theta_per_rad_rad2 * turn
+        return np.diag([0.5 * q_xy, 0.5 * q_xy, q_th])
+
+
+def propagate_covariances(poses: FloatArray, model: OdometryErrorModel) -> FloatArray:
+    """(N, 3, 3) covariances of odometry poses (N, 3) as an odometry would publish them: 0 at
+    the first, then Sigma_k = F_k Sigma_{k-1} F_k^T + Q_k (F_k the motion Jacobian of the
+    step, Q_k the model's noise of its increment) -- what `RelativeCovariance` unrolls."""
+    p = np.asarray(poses, dtype=np.float64)
+    out = np.zeros((p.shape[0], 3, 3))
+    for k in range(1, p.shape[0]):
+        a, b = Pose2D(*(float(v) for v in p[k - 1])), Pose2D(*(float(v) for v in p[k]))
+        f = motion_jacobian(a, b)
+        inc = relative_poses(p[k - 1], p[k])[0]
+        out[k] = f @ out[k - 1] @ f.T + model.step_noise(inc)
+    return out
 
 
 def fit_odometry_error_model(raw_increments: FloatArray,

@@ -39,7 +39,7 @@ from island_mapping.core.builder.epsilon import (
     EvaluateFn,
     FitFn,
     Measures,
-    OdometryErrorModel,
+    OdometryTrack,
     eq3_bound,
     normalized_measures,
 )
@@ -168,9 +168,6 @@ class PassiveConfig:
         metadata={"help": "the place search's distance field reaches this far beyond the "
                   "coverage radius (the sensor's range) [m]"},
     )
-    odometry: OdometryErrorModel = field(
-        default_factory=OdometryErrorModel, metadata={"help": "raw-odometry error model (epsilon)"}
-    )
     builder: BuilderConfig = field(
         default_factory=_laser_builder,
         metadata={"help": "eq. 3 (E_min, T_i, bound floor), line fit, measure, localization: "
@@ -268,43 +265,17 @@ def inlier_fraction(pose: FloatArray, points: FloatArray, model: LineModel,
     return float(np.mean(dist <= inlier_m))
 
 
-class _EpsilonTracker:
-    """epsilon [m] since the last fix, first-order per odometry increment (d [m], dtheta [rad]):
-    var_theta += a_m d + a_r |dtheta|; var_xy += b_m d + b_r |dtheta| + var_theta d^2."""
-
-    def __init__(self, model: OdometryErrorModel) -> None:
-        self._m = model
-        self.var_xy_m2 = 0.0
-        self.var_theta_rad2 = 0.0
-
-    def reset(self) -> None:
-        self.var_xy_m2 = 0.0
-        self.var_theta_rad2 = 0.0
-
-    def step(self, increment: FloatArray) -> float:
-        d = float(math.hypot(increment[0], increment[1]))
-        turn = abs(float(increment[2]))
-        m = self._m
-        self.var_theta_rad2 += m.var_theta_per_m_rad2 * d + m.var_theta_per_rad_rad2 * turn
-        self.var_xy_m2 += (
-            m.var_xy_per_m_m2 * d + m.var_xy_per_rad_m2 * turn + self.var_theta_rad2 * d * d
-        )
-        return self.epsilon_m
-
-    @property
-    def epsilon_m(self) -> float:
-        return math.sqrt(self.var_xy_m2)
-
-
 @dataclass
 class _Scan:
     """A scan waiting for its decision: robot-frame points for island models and for fixes,
-    the odometric pose it was taken at."""
+    the odometric pose it was taken at, and the odometry messages up to it (pose, 3x3
+    covariance) since the scan before."""
 
     t_s: float
     points: FloatArray
     fix_points: FloatArray
     odom: FloatArray  # (3,)
+    odometry: list[tuple[Pose2D, FloatArray]]
 
 
 class PassiveBuilder:
@@ -326,7 +297,8 @@ class PassiveBuilder:
         self._received = 0  # scans received
         self._decided = 0  # scans decided
         self._odom: FloatArray | None = None
-        self._eps = _EpsilonTracker(cfg.odometry)
+        self._odometry: list[tuple[Pose2D, FloatArray]] = []  # messages since the last scan
+        self._track = OdometryTrack()  # epsilon (eq. 3), advanced as scans are decided
         self._current, self._pose = -1, np.zeros(3)  # the island tracked, the pose in it
         self._next_attempt = 0
         self._scan_island: list[int] = []
@@ -342,6 +314,7 @@ class PassiveBuilder:
             raise BuilderError(f"on_odometry: need a finite time and a finite 3x3 covariance, "
                                f"got t {t_s} and shape {cov.shape}")
         self._odom = np.array([pose.x, pose.y, pose.theta])
+        self._odometry.append((pose, cov))
 
     def on_scan(self, t_s: float, points_m: FloatArray,
                 fix_points_m: FloatArray | None = None) -> None:
@@ -351,7 +324,8 @@ class PassiveBuilder:
             raise BuilderError("on_scan: no odometry yet (feed on_odometry first)")
         pts = np.asarray(points_m, dtype=np.float64).reshape(-1, 2)
         fix = pts if fix_points_m is None else np.asarray(fix_points_m, np.float64).reshape(-1, 2)
-        self._scans[self._received] = _Scan(t_s, pts, fix, self._odom.copy())
+        self._scans[self._received] = _Scan(t_s, pts, fix, self._odom.copy(), self._odometry)
+        self._odometry = []
         self._received += 1
         while self._decided + self.config.half_window_scans < self._received:
             self._decide()
@@ -379,17 +353,21 @@ class PassiveBuilder:
         inc = relative_poses(prev.odom, scan.odom)[0] if prev is not None else np.zeros(3)
         self._scan_island.append(-1)
         self._scan_pose.append(np.full(3, np.nan))
-        fixed = self._track(i, inc)
-        self._eps_log.append(self._eps.step(inc))
+        fixed = self._locate(i, inc)
+        for pose, cov in scan.odometry:
+            self._track.update(pose, cov)
+        self._eps_log.append(self._track.rel.epsilon_m)
         if fixed is not None:
             self._record(i, self._current, fixed)
-            self._eps.reset()
-        elif self._eps.epsilon_m > self.config.builder.e_min_m and i >= self._next_attempt:
+            self._track.rel.reset()
+        elif self._track.rel.epsilon_m > self.config.builder.e_min_m and (
+            i >= self._next_attempt
+        ):
             self._lost(i)
         self._decided += 1
         self._scans.pop(i - self.config.half_window_scans - 1, None)
 
-    def _track(self, i: int, inc: FloatArray) -> FloatArray | None:
+    def _locate(self, i: int, inc: FloatArray) -> FloatArray | None:
         """Scan i's fix in the island tracked (from the previous pose plus the increment), else
         in an island near by odometry (within relocalize_radius_m plus epsilon, nearest first)."""
         fixed: FloatArray | None = None
@@ -399,7 +377,7 @@ class PassiveBuilder:
                 self._current = -1
         if fixed is None and self.islands:
             odom = Pose2D(*(float(v) for v in self._scans[i].odom))
-            radius = self.config.relocalize_radius_m + self._eps.epsilon_m
+            radius = self.config.relocalize_radius_m + self._track.rel.epsilon_m
             for _, k, guess in self.recognizer.near(odom, radius):
                 fixed = self._try_fix(k, i, guess)
                 if fixed is not None:
@@ -430,7 +408,7 @@ class PassiveBuilder:
             found = self._recognize(i)
             if found is not None:
                 self._record(i, *found)
-                self._eps.reset()
+                self._track.rel.reset()
                 return
         self._attempt(i)
 
@@ -460,7 +438,7 @@ class PassiveBuilder:
         model, window = self._window_model(i)
         measures = self.measures.evaluate(model.segments, np.zeros(2)) if len(model) else {}
         best_type, best = normalized_measures(bcfg, measures)
-        eps = self._eps.epsilon_m
+        eps = self._track.rel.epsilon_m
         bound = eq3_bound(bcfg, eps)
         accepted = len(model) > 0 and best > bound
         self.attempts.append(PassiveAttempt(
@@ -479,7 +457,7 @@ class PassiveBuilder:
         self._emit(EventKind.ISLAND_ACCEPTED, scan.t_s, at, eps, anchor_odom=at, measure=best,
                    bound=bound, island=island)
         self._current = island.id
-        self._eps.reset()
+        self._track.rel.reset()
         # The anchor and the window scans before it are localized in the new island.
         for j, guess in window:
             if j > i or self._scan_island[j] >= 0:
