@@ -16,7 +16,7 @@ import json
 
 from island_mapping.cli import CliError
 from island_mapping.cli.args import POSITIVE_COUNT, check_output_dir
-from island_mapping.core import realdata as rd
+from island_mapping.core import sonar_ring as rd
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,14 +29,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from island_msgs_py.json_io import atomic_write_text
 
+    from island_mapping.logs.errors import LogFormatError
+    from island_mapping.logs.uci_sonar import read_sonar_ring
     from island_mapping.viz.realdata import plot_ring_scores
 
     if args.limit is not None and args.limit < 1:
         raise CliError(f"--limit: expected at least 1 reading, got {args.limit}")
     out = check_output_dir(args.out)
     try:
-        readings = rd.read_sonar_ring(args.data, args.limit)
-    except rd.RealDataError as exc:
+        readings = read_sonar_ring(args.data, args.limit)
+    except LogFormatError as exc:
         raise CliError(str(exc)) from None
     if readings.ranges_m.shape[0] == 0:
         raise CliError(f"{args.data}: no readings")
