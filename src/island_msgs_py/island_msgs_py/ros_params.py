@@ -12,9 +12,10 @@ import faulthandler
 import os
 import signal
 import sys
+import traceback
 from collections.abc import Callable, Sequence
 from enum import Enum
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
@@ -39,6 +40,28 @@ class BadMessageLog:
         self.count += 1
         self._logger.warn(f"ignored bad {what} ({self.count} so far): {exc}",
                           throttle_duration_sec=self._throttle_s)
+
+
+def clock_ns(node: Node) -> int:
+    """The node's clock now [ns] (sim time when use_sim_time: 0 before the first /clock)."""
+    return int(node.get_clock().now().nanoseconds)
+
+
+def spin_guarded(executor: Any, node: Node) -> None:
+    """`executor.spin()`, except that an exception escaping a callback (a bug some message
+    triggered: the callbacks turn bad input into counted warnings themselves) is logged with its
+    traceback and the node spins on: one message never kills a node."""
+    logger = node.get_logger()
+    failures = 0
+    while executor.context.ok():
+        try:
+            executor.spin_once()
+        except Exception:  # the node survives; the traceback goes to its log
+            if not executor.context.ok():
+                raise
+            failures += 1
+            logger.error(f"a callback failed ({failures} so far), the node goes on:\n"
+                         f"{traceback.format_exc()}", throttle_duration_sec=BAD_MESSAGE_THROTTLE_S)
 
 
 def ensure_ros_env() -> None:
@@ -79,7 +102,7 @@ def declare_config(node: Node, prefix: str, default: T) -> T:
         elif isinstance(current, float) and isinstance(got, int):
             got = float(got)
         values[f.name] = got
-    return dataclasses.replace(default, **values)  # type: ignore[type-var]
+    return cast(T, dataclasses.replace(cast(Any, default), **values))
 
 
 EXIT_BAD_CONFIG = 2
@@ -118,7 +141,7 @@ def run_node(
             return EXIT_BAD_CONFIG
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        executor.spin()
+        spin_guarded(executor, node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:
