@@ -12,6 +12,7 @@ import faulthandler
 import os
 import signal
 import sys
+import time
 import traceback
 from collections.abc import Callable, Sequence
 from enum import Enum
@@ -47,6 +48,20 @@ def clock_ns(node: Node) -> int:
     return int(node.get_clock().now().nanoseconds)
 
 
+SHUTDOWN_SETTLE_S = 0.5
+"""A callback that fails while a signal shuts the context down is told from a bug by waiting
+this long for the context to report the shutdown [s]."""
+
+
+def _shutting_down(context: Any) -> bool:
+    deadline = time.monotonic() + SHUTDOWN_SETTLE_S
+    while context.ok():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)
+    return True
+
+
 def spin_guarded(executor: Any, node: Node) -> None:
     """`executor.spin()`, except that an exception escaping a callback (a bug some message
     triggered: the callbacks turn bad input into counted warnings themselves) is logged with its
@@ -57,8 +72,8 @@ def spin_guarded(executor: Any, node: Node) -> None:
         try:
             executor.spin_once()
         except Exception:  # the node survives; the traceback goes to its log
-            if not executor.context.ok():
-                raise
+            if _shutting_down(executor.context):
+                raise  # what failed was the shut-down context (Ctrl-C, SIGTERM)
             failures += 1
             logger.error(f"a callback failed ({failures} so far), the node goes on:\n"
                          f"{traceback.format_exc()}", throttle_duration_sec=BAD_MESSAGE_THROTTLE_S)
