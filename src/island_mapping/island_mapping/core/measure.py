@@ -321,6 +321,10 @@ def line_measure(
     return res
 
 
+MAX_GRID_POINTS = 4_000_000
+"""Most points of one measure grid (a 200 m x 200 m world at 0.1 m) [-]."""
+
+
 def grid_points(
     bounds: tuple[float, float, float, float], resolution_m: float
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -332,6 +336,10 @@ def grid_points(
         raise MeasureError(f"resolution_m: must be > 0, got {resolution_m}")
     nx = max(1, math.floor((xmax - xmin) / resolution_m + 1e-9))
     ny = max(1, math.floor((ymax - ymin) / resolution_m + 1e-9))
+    if nx * ny > MAX_GRID_POINTS:
+        raise MeasureError(
+            f"resolution_m: {resolution_m:g} m makes a grid of {nx} x {ny} points over the "
+            f"bounds (the limit is {MAX_GRID_POINTS:,} points)")
     xs = xmin + (np.arange(nx, dtype=np.float64) + 0.5) * resolution_m
     ys = ymin + (np.arange(ny, dtype=np.float64) + 0.5) * resolution_m
     gx, gy = np.meshgrid(xs, ys, indexing="xy")
