@@ -149,21 +149,25 @@ class SimLoopConfig:
     """How the simulator steps time (used by the odometry node and in-process runners)."""
 
     physics_rate_hz: float = field(
-        default=50.0, metadata={"help": "physics/odometry steps per simulated second [Hz]"}
+        default=50.0,
+        metadata={"help": "physics/odometry steps per simulated second [Hz]",
+                  "range": (0.0, math.inf)},
     )
     sensor_rate_hz: float = field(
         default=10.0,
         metadata={"help": "sonar scans (and controller periods) per simulated second; must "
-                  "divide physics_rate_hz [Hz]"},
+                  "divide physics_rate_hz [Hz]", "range": (0.0, math.inf)},
     )
     publish_rate_hz: float = field(
         default=50.0,
         metadata={"help": "rate of /odom, /ground_truth and /clock; must divide "
-                  "physics_rate_hz and be a multiple of sensor_rate_hz [Hz]"},
+                  "physics_rate_hz and be a multiple of sensor_rate_hz [Hz]",
+                  "range": (0.0, math.inf)},
     )
     real_time_factor: float = field(
         default=1.0,
-        metadata={"help": "simulated seconds per wall second; 0 = as fast as possible [-]"},
+        metadata={"help": "simulated seconds per wall second; 0 = as fast as possible [-]",
+                  "live": True, "range": (0.0, math.inf)},
     )
     lockstep: bool = field(
         default=False,
@@ -172,18 +176,21 @@ class SimLoopConfig:
     )
     lockstep_timeout_s: float = field(
         default=2.0,
-        metadata={"help": "wall-clock wait for a lockstep /cmd_vel before stepping anyway [s]"},
+        metadata={"help": "wall-clock wait for a lockstep /cmd_vel before stepping anyway [s]",
+                  "live": True, "range": (0.0, math.inf)},
     )
     own_clock: bool = field(
         default=True, metadata={"help": "publish rosgraph_msgs/Clock on /clock [bool]"}
     )
     cmd_timeout_s: float = field(
         default=0.5,
-        metadata={"help": "stop the robot when no /cmd_vel arrived for this simulated time [s]"},
+        metadata={"help": "stop the robot when no /cmd_vel arrived for this simulated time [s]",
+                  "live": True, "range": (0.0, math.inf)},
     )
     stop_after_s: float = field(
         default=0.0,
-        metadata={"help": "stop stepping at this simulated time; 0 = run forever [s]"},
+        metadata={"help": "stop stepping at this simulated time; 0 = run forever [s]",
+                  "range": (0.0, math.inf)},
     )
 
     def __post_init__(self) -> None:
