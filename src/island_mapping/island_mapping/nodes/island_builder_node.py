@@ -190,7 +190,15 @@ class IslandBuilderNode(Node):
             # At a new or revisited island's origin: the follower's record restarts, it resumes.
             self._enable_pending = True
             fut = self.reset_cli.call_async(Trigger.Request())
-            fut.add_done_callback(lambda _f: self._send_enable(True))
+            fut.add_done_callback(self._on_reset)
+
+    def _on_reset(self, fut: Any) -> None:
+        """The follower's record restarted (it refuses while following: say so); resume it."""
+        res = fut.result()
+        if res is None or not res.success:
+            why = res.message if res is not None else "no answer"
+            self.get_logger().warn(f"{self.reset_cli.service_name} failed: {why}")
+        self._send_enable(True)
 
     def _on_added(self, fut: Any) -> None:
         res = fut.result()
