@@ -8,6 +8,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+import pytest
 import rclpy
 from geometry_msgs.msg import TwistStamped
 from island_msgs_py.conversions import time_to_ns
@@ -18,6 +19,7 @@ from island_sim.nodes.sonar_node import SonarNode
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rcl_interfaces.srv import SetParameters
+from rclpy.exceptions import ParameterException
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -182,3 +184,20 @@ def test_follower_parameters_set_at_run_time_take_effect_or_are_refused(
         for n in (odo, sonar, follower, client):
             n.destroy_node()
         assert rclpy.ok(context=ctx)
+
+
+def test_out_of_range_values_are_refused_at_start_and_ranges_are_described(
+        ros_context: Any) -> None:
+    """`ros2 param describe` shows each range; a value outside it never starts the node."""
+    with pytest.raises(ParameterException, match=r"sonar\.reflect_deg"):
+        SonarNode(context=ros_context, parameter_overrides=[_p("sonar.reflect_deg", 120.0)])
+    odo = OdometryNode(context=ros_context, parameter_overrides=[_p("world", "corridor")])
+    try:
+        desc = {d.name: d for d in odo.describe_parameters(
+            ["odometry.dist_heading_correlation", "robot.max_linear_speed_mps", "seed"])}
+        corr = desc["odometry.dist_heading_correlation"].floating_point_range[0]
+        assert (corr.from_value, corr.to_value) == (-1.0, 1.0)
+        assert desc["robot.max_linear_speed_mps"].floating_point_range[0].from_value == 0.0
+        assert all(d.read_only for d in desc.values())
+    finally:
+        odo.destroy_node()
