@@ -1,4 +1,4 @@
-"""/sonar/scan and /odom for a node that acts on each scan with the odometry of its stamp.
+"""sonar/scan and odom for a node that acts on each scan with the odometry of its stamp.
 
 The message side of `island_msgs_py.stamps.ScanOdomPairer`, shared by the hall follower and the
 island localizer nodes: converts both topics, feeds the pairer and hands every released scan
@@ -34,14 +34,15 @@ def subscribe_paired_scans(
     handle: Callable[[list[Paired[ScanArrays]]], None],
     warn: Callable[[str, Exception], None],
 ) -> ScanOdomPairer[ScanArrays]:
-    """Subscribe `node` to /odom and /sonar/scan; returns the pairer (for its counters)."""
+    """Subscribe `node` to odom and sonar/scan (relative: in its namespace); returns the pairer
+    (for its counters)."""
     pairer: ScanOdomPairer[ScanArrays] = ScanOdomPairer(max_buffer)
 
     def on_odom(msg: Odometry) -> None:
         try:
             pose, _, t_ns = odometry_to_pose(msg)
         except ConversionError as exc:
-            warn("/odom", exc)
+            warn("odom", exc)
             return
         handle(pairer.odometry(t_ns, pose))
 
@@ -49,13 +50,13 @@ def subscribe_paired_scans(
         try:
             scan = scan_to_arrays(msg)
         except ConversionError as exc:
-            warn("/sonar/scan", exc)
+            warn("sonar/scan", exc)
             return
         dropped = pairer.dropped_scans
         handle(pairer.scan(time_to_ns(msg.header.stamp), scan))
         if pairer.dropped_scans > dropped:
-            warn("/sonar/scan", ValueError("no odometry at or after a scan's stamp"))
+            warn("sonar/scan", ValueError("no odometry at or after a scan's stamp"))
 
-    node.create_subscription(Odometry, "/odom", on_odom, STREAM_QOS)
-    node.create_subscription(LaserScan, "/sonar/scan", on_scan, STREAM_QOS)
+    node.create_subscription(Odometry, "odom", on_odom, STREAM_QOS)
+    node.create_subscription(LaserScan, "sonar/scan", on_scan, STREAM_QOS)
     return pairer

@@ -2,7 +2,7 @@
 
   islands replay BAG --out DIR [--reference GRAPH] [--allow-damaged] [--builder-param K=V ...]
 
-Replays the recorded /clock, /odom, /ground_truth, /sonar/scan and /hall_follower/strategy of
+Replays the recorded /clock, /odom, /ground_truth, /sonar/scan and /hall_follower/progress of
 BAG (a rosbag2 directory such as `islands explore`'s run_bag/, or its .mcap file) into a fresh
 island builder and graph server in the recorded order, awaiting each message's delivery before
 the next scan goes out (see island_mapping.replay and docs/replay.md), and writes
