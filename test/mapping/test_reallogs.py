@@ -157,3 +157,27 @@ def test_islands_on_a_synthetic_building_through_the_cli(
     assert m["reference"]["places"]["places"] >= 1
     text = capsys.readouterr().out
     assert "b.log" in text and "bridged, headline" in text and "islands per place" in text
+
+
+def test_replay_passive_of_an_imported_log_builds_the_same_islands(
+        tmp_path: Path, room: str, capsys: pytest.CaptureFixture[str]) -> None:
+    sim = syn.simulate_log(room, beams=181, goals=2, seed=9)
+    paths = syn.write_all(sim, tmp_path / "r")
+    bag = tmp_path / "bag"
+    assert main(["bag", "import-carmen", str(paths["log"]), "--out", str(bag)]) == 0
+    assert main(["eval-relations", "--log", str(paths["log"]), "--relations",
+                 str(paths["relations"]), "--out", str(tmp_path / "ev")]) == 0
+    assert main(["replay", str(bag), "--passive", "--relations", str(paths["relations"]),
+                 "--out", str(tmp_path / "rp")]) == 0
+    ev = json.loads((tmp_path / "ev" / "metrics.json").read_text())
+    rp = json.loads((tmp_path / "rp" / "metrics.json").read_text())
+    assert rp["geometry"]["source"] == "LaserScan fields"
+    assert rp["geometry"]["increment_deg"] == pytest.approx(1.0)
+    # The bag has no odometry before the first scan: that scan is dropped, and counted.
+    assert rp["skipped"]["scans_before_odometry"] == 1 and rp["scans"] == ev["scans"] - 1
+    assert rp["island_count"] == ev["island_count"] >= 1
+    assert rp["bridged"]["covered_relations"] == pytest.approx(
+        ev["bridged"]["covered_relations"], abs=3)
+    assert rp["bridged"]["mean_trans_err_m"] < 0.05
+    assert "the recording's /gmapping_pose" in rp["reference"]["name"]
+    assert "rp" not in capsys.readouterr().err

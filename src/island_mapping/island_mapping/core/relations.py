@@ -36,6 +36,8 @@ BoolArray = npt.NDArray[np.bool_]
 INTEL_LOG_TO_UNIX_S = 976052857.338
 # Relation times sampled when searching the offset (spread over the relations) [-].
 OFFSET_SAMPLE = 200
+# The earliest relation times whose distances to every log line are candidate offsets [-].
+OFFSET_ANCHORS = 3
 # A relation time matches a scan when they differ by at most this [s] (scans are ~3.35 s apart,
 # relation timestamps sit within 6 ms of a log line).
 SCAN_MATCH_TOLERANCE_S = 0.010
@@ -191,7 +193,7 @@ def _matches(rel_t: FloatArray, lines: FloatArray, offsets: FloatArray,
 def find_time_offset(relation_times_s: npt.ArrayLike, line_times_s: npt.ArrayLike,
                      tolerance_s: float = SCAN_MATCH_TOLERANCE_S) -> TimeOffset:
     """The offset (relation time - log time) [s] that puts the most relation times on log
-    lines: the earliest relation time lies on some line, so every `first - line` is a
+    lines: one of the earliest relation times lies on some line, so every `first - line` is a
     candidate, scored on a sample of relation times; then the best is refined on all of them in
     1 ms steps (ties: the middle of the best run). 0 is a candidate too (relations in log time).
     RelationsError when fewer than half the relation times then lie on a line (the relations
@@ -201,7 +203,8 @@ def find_time_offset(relation_times_s: npt.ArrayLike, line_times_s: npt.ArrayLik
     if rel_t.size == 0 or lines.size == 0:
         raise RelationsError("time offset: no relation times or no log lines")
     sample = rel_t[np.linspace(0, rel_t.size - 1, min(OFFSET_SAMPLE, rel_t.size)).astype(int)]
-    cands = np.concatenate([[0.0], rel_t[0] - lines])
+    firsts = rel_t[:OFFSET_ANCHORS]  # one of them lies on a line (the first may not be logged)
+    cands = np.concatenate([[0.0], *(t - lines for t in firsts)])
     best = np.zeros(cands.size, dtype=np.int64)
     for k in range(0, cands.size, 2000):  # bounded temporaries
         best[k:k + 2000] = _matches(sample, lines, cands[k:k + 2000], tolerance_s)

@@ -116,7 +116,10 @@ def simulate_log(world_spec: str, *, beams: int = 361, fov_deg: float = 180.0, g
     odo = [truth[0].copy()]
     for s in noisy:
         odo.append(compose_poses(odo[-1], s)[0])
-    times: FloatArray = scan_period_s * np.arange(truth.shape[0], dtype=np.float64) + 0.123
+    # Scan periods jitter as a real laser's do (a strictly periodic clock would let relation
+    # times fit a log shifted by whole periods).
+    periods = scan_period_s * (1.0 + 0.2 * rng.uniform(-1.0, 1.0, truth.shape[0]))
+    times: FloatArray = np.cumsum(periods) - periods[0] + 0.123
     name = world_spec if ":" in world_spec else Path(world_spec).stem
     corrected: FloatArray = truth + rng.normal(0.0, 1.0, truth.shape) * np.array(
         [corrected_noise[0], corrected_noise[0], math.radians(corrected_noise[1])])
