@@ -118,7 +118,8 @@ def simulate_log(world_spec: str, *, beams: int = 361, fov_deg: float = 180.0, g
         odo.append(compose_poses(odo[-1], s)[0])
     # Scan periods jitter as a real laser's do (a strictly periodic clock would let relation
     # times fit a log shifted by whole periods).
-    periods = scan_period_s * (1.0 + 0.2 * rng.uniform(-1.0, 1.0, truth.shape[0]))
+    periods: FloatArray = scan_period_s * (
+        1.0 + 0.2 * np.asarray(rng.uniform(-1.0, 1.0, truth.shape[0]), dtype=np.float64))
     times: FloatArray = np.cumsum(periods) - periods[0] + 0.123
     name = world_spec if ":" in world_spec else Path(world_spec).stem
     corrected: FloatArray = truth + rng.normal(0.0, 1.0, truth.shape) * np.array(
