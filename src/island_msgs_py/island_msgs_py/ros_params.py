@@ -79,7 +79,7 @@ def declare_config(node: Node, prefix: str, default: T) -> T:
         elif isinstance(current, float) and isinstance(got, int):
             got = float(got)
         values[f.name] = got
-    return dataclasses.replace(default, **values)  # type: ignore[type-var]
+    return dataclasses.replace(default, **values)
 
 
 EXIT_BAD_CONFIG = 2
