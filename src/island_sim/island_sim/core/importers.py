@@ -137,34 +137,6 @@ def read_png(path: Path) -> npt.NDArray[np.uint8]:
     data = _read_bytes(path)
     if not data.startswith(_PNG_SIGNATURE):
         raise WorldError(f"{path}: not a PNG image (bad signature)")
-    header, palette, idat = _png_chunks(data, path)
-    width, height, depth, color, _comp, _filt, interlace = header
-    channels = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}.get(color)
-    if channels is None or depth not in (8, 16) or (color == 3 and depth != 8):
-        raise WorldError(
-            f"{path}: unsupported PNG (colour type {color}, bit depth {depth}); "
-            "use 8 or 16-bit grey, RGB or 8-bit palette"
-        )
-    if interlace:
-        raise WorldError(f"{path}: interlaced PNG is not supported")
-    try:
-        raw = zlib.decompress(idat)
-    except zlib.error as exc:
-        raise WorldError(f"{path}: corrupt PNG image data ({exc})") from exc
-    bpp = channels * depth // 8
-    stride = width * bpp
-    if len(raw) < height * (stride + 1):
-        raise WorldError(f"{path}: PNG image data truncated")
-    rows = _png_unfilter(np.frombuffer(raw, dtype=np.uint8), height, stride, bpp, path)
-    if depth == 16:
-        px = rows.reshape(height, width, channels, 2)[..., 0].astype(np.float64)  # high bytes
-    else:
-        px = rows.reshape(height, width, channels).astype(np.float64)
-    return np.clip(np.round(_png_grey(px, color, palette, path)), 0, 255).astype(np.uint8)
-
-
-def _png_chunks(data: bytes, path: Path) -> tuple[tuple[int, ...], bytes | None, bytes]:
-    """The IHDR fields, the PLTE body (None if absent) and the joined IDAT bodies of a PNG."""
     pos = len(_PNG_SIGNATURE)
     header: tuple[int, ...] | None = None
     palette: bytes | None = None
@@ -186,13 +158,28 @@ def _png_chunks(data: bytes, path: Path) -> tuple[tuple[int, ...], bytes | None,
             break
     if header is None:
         raise WorldError(f"{path}: PNG without IHDR chunk")
-    return header, palette, bytes(idat)
-
-
-def _png_grey(
-    px: npt.NDArray[np.float64], color: int, palette: bytes | None, path: Path
-) -> npt.NDArray[np.float64]:
-    """(H, W) grey levels of (H, W, channels) samples of PNG colour type `color`."""
+    width, height, depth, color, _comp, _filt, interlace = header
+    channels = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}.get(color)
+    if channels is None or depth not in (8, 16) or (color == 3 and depth != 8):
+        raise WorldError(
+            f"{path}: unsupported PNG (colour type {color}, bit depth {depth}); "
+            "use 8 or 16-bit grey, RGB or 8-bit palette"
+        )
+    if interlace:
+        raise WorldError(f"{path}: interlaced PNG is not supported")
+    try:
+        raw = zlib.decompress(bytes(idat))
+    except zlib.error as exc:
+        raise WorldError(f"{path}: corrupt PNG image data ({exc})") from exc
+    bpp = channels * depth // 8
+    stride = width * bpp
+    if len(raw) < height * (stride + 1):
+        raise WorldError(f"{path}: PNG image data truncated")
+    rows = _png_unfilter(np.frombuffer(raw, dtype=np.uint8), height, stride, bpp, path)
+    if depth == 16:
+        px = rows.reshape(height, width, channels, 2)[..., 0].astype(np.float64)  # high bytes
+    else:
+        px = rows.reshape(height, width, channels).astype(np.float64)
     if color == 3:
         if palette is None:
             raise WorldError(f"{path}: palette PNG without PLTE chunk")
@@ -200,10 +187,12 @@ def _png_grey(
         idx = px[..., 0].astype(np.int64)
         if idx.max() >= pal.shape[0]:
             raise WorldError(f"{path}: PNG palette index out of range")
-        return pal[idx].mean(axis=2)
-    if color in (2, 6):
-        return px[..., :3].mean(axis=2)
-    return px[..., 0]
+        grey = pal[idx].mean(axis=2)
+    elif color in (2, 6):
+        grey = px[..., :3].mean(axis=2)
+    else:
+        grey = px[..., 0]
+    return np.clip(np.round(grey), 0, 255).astype(np.uint8)
 
 
 def _png_unfilter(
