@@ -19,7 +19,9 @@ PACKAGES = ("island_msgs_py", "island_sim", "island_mapping")
 
 
 # island_msgs_py's ROS-free modules (conversions, qos, ros_params, scan_inputs use rclpy).
-MSGS_CORE = ("types", "json_io", "geometry", "raycast", "stamps")
+MSGS_CORE = (
+    "types", "limits", "json_checks", "json_io", "geometry", "raycast", "stamps", "hall_perception",
+)
 
 
 def _modules_under(pkg: str, sub: str) -> list[str]:
