@@ -78,7 +78,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="use only the first N scans (quick runs)")
 
 
-def _progress(scan: int, scans: int, islands: int) -> None:
+def progress(scan: int, scans: int, islands: int) -> None:
     if scan % PROGRESS_EVERY_SCANS == 0:
         print(f"islands: scan {scan}/{scans}, {islands} islands", file=sys.stderr, flush=True)
 
@@ -134,7 +134,7 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
     score = scoring(args)
     try:
         log = from_carmen(args.log, geometry_override(args))
-        metrics, run = evaluate_log(log, offline_config(args), score, args.max_scans, _progress)
+        metrics, run = evaluate_log(log, offline_config(args), score, args.max_scans, progress)
     except (LogFormatError, RelationsError, offline.OfflineError) as exc:
         raise CliError(str(exc)) from None
     metrics["seed"] = args.seed

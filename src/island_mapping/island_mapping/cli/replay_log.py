@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
         log, counts = read_scan_log(args.bag, scan_topic=args.scan_topic,
                                     odom_topic=args.odom_topic,
                                     override=ev.geometry_override(args))
-        metrics, run_ = evaluate_log(log, ev.offline_config(args), score, None, ev._progress)
+        metrics, run_ = evaluate_log(log, ev.offline_config(args), score, None, ev.progress)
     except (LogFormatError, RelationsError, ev.offline.OfflineError) as exc:
         raise CliError(str(exc)) from None
     metrics["skipped"] = counts
