@@ -52,7 +52,7 @@ def run(world: str, sim_s: float, lockstep: bool, publish_hz: float, lean: bool)
     sonar = SonarNode(context=ctx, parameter_overrides=[
         *common, p("use_sim_time", value=True), p("world", value=world)], **kw)
     follower = HallFollowerNode(context=ctx, parameter_overrides=[
-        *common, p("use_sim_time", value=True)], **kw)
+        *common, p("use_sim_time", value=True), p("autostart", value=True)], **kw)
     ex = SingleThreadedExecutor(context=ctx)
     for n in (odo, sonar, follower):
         ex.add_node(n)

@@ -3,7 +3,7 @@ process on a private domain, and a probe that sends one hostile message class at
 
 After each case every node must still be alive (deaths), answer a parameter request and, for
 the simulator, keep publishing /odom, /sonar/scan and /cmd_vel (silent). Also: a builder
-restarted on the latched bad strategy; the graph server SIGKILLed and restarted on its own
+restarted mid-run; the graph server SIGKILLed and restarted on its own
 store after hostile requests; a server started on a damaged store exits 2 in one line. Peak
 memory per node is its VmHWM.
 """
@@ -115,7 +115,7 @@ def _messages() -> dict[str, Any]:
     return {
         "types": {"/cmd_vel": TwistStamped, "/ground_truth": Odometry, "/odom": Odometry,
                   "/sonar/scan": LaserScan, "/island_builder/events": String,
-                  "/hall_follower/strategy": String},
+                  "/hall_follower/progress": String},
         "cases": [
             ("cmd_vel stamped 2^31-1 s", "/cmd_vel", [command_to_twist_stamped(0.3, 0, FAR_NS)]),
             ("cmd_vel NaN", "/cmd_vel", [command_to_twist_stamped(float("nan"), 0, 0)]),
@@ -132,7 +132,7 @@ def _messages() -> dict[str, Any]:
              [String(data="[" * 100_000 + "]" * 100_000)]),
             ("event of 9 MB", "/island_builder/events", [String(data="[" + "1," * 4_500_000
                                                                 + "1]")]),
-            ("strategy Go of 5000 digits (latched)", "/hall_follower/strategy",
+            ("progress Go of 5000 digits", "/hall_follower/progress",
              [String(data="Go " + "9" * 5000)]),
         ],
     }
@@ -158,7 +158,7 @@ class Probe:
         for topic, cls in self.msgs["types"].items():
             from island_msgs_py.qos import LATCHED
             from rclpy.qos import QoSProfile
-            qos = LATCHED if topic == "/hall_follower/strategy" else QoSProfile(depth=10)
+            qos = LATCHED if topic == "/hall_follower/progress" else QoSProfile(depth=10)
             self.pubs[topic] = self.node.create_publisher(cls, topic, qos)
             if topic in FLOWS:
                 self.node.create_subscription(cls, topic, self._counter(topic), 10)
@@ -293,7 +293,7 @@ def run_nodes() -> dict[str, Any]:
             nodes.stop("island_builder_node")
             nodes.start("island_builder_node")
             probe.spin(3.0)
-            _check(probe, nodes, "builder restarted on the latched bad strategy", results, t0)
+            _check(probe, nodes, "builder restarted mid-run", results, t0)
             _server_cases(probe, nodes, results, store)
         finally:
             probe.close()

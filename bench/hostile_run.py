@@ -118,7 +118,7 @@ def make_files(d: Path) -> dict[str, Path]:
                              "origin: [0, 0, 0]\n",
         "bad_syntax.yaml": "a: [1, 2\nb: {\n",
         "carmen_1e12.log": "ODOM 0 0 0 0 0 0 1e12 pippo 1e12\n"
-                           "FLASER 2 1.0 1.0 0 0 0 0 0 0 1e12 pippo 1e12\n",
+                           "FLASER 180 " + "1.0 " * 180 + "0 0 0 0 0 0 1e12 pippo 1e12\n",
         "bad.relations": "1 2 3\n",
         "bad_uci.data": "0.4," * 24 + "Move-Forward\n" + "nan," * 24 + "x\n",
         "geo_deep.geojson": '{"type": "FeatureCollection", "features": ' + "[" * 100_000 + "]"

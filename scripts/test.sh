@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# Set up what is missing, then run every test (ruff and mypy included). Extra args go to pytest.
+# Set up what is missing, then run every test (ruff, the import contracts and mypy included).
+# Extra args go to pytest.
 set -eo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 . "$ROOT/scripts/setup.sh"
 cd "$ROOT"
 python -m ruff check src test bench
+lint-imports  # the architecture contracts of pyproject.toml [tool.importlinter]
 python -m mypy
 python -m pytest "$@"

@@ -8,6 +8,7 @@ import json
 import re
 import subprocess
 import sys
+import tomllib
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -18,8 +19,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("island_msgs_py", "island_sim", "island_mapping")
 
 
-# island_msgs_py's ROS-free modules (conversions, qos, ros_params, scan_inputs use rclpy).
-MSGS_CORE = ("types", "json_io", "geometry", "raycast", "stamps")
+# island_msgs_py's message-facing modules (they use rclpy); every other module is ROS-free.
+MSGS_MESSAGE_FACING = ("conversions", "qos", "ros_params", "scan_inputs")
 
 
 def _modules_under(pkg: str, sub: str) -> list[str]:
@@ -32,8 +33,13 @@ def _modules_under(pkg: str, sub: str) -> list[str]:
     return out
 
 
+def _msgs_core_modules() -> list[str]:
+    return [m for m in _modules_under("island_msgs_py", "")
+            if m != "island_msgs_py" and m.split(".")[1] not in MSGS_MESSAGE_FACING]
+
+
 def _core_modules() -> list[str]:
-    mods = [f"island_msgs_py.{m}" for m in MSGS_CORE]
+    mods = _msgs_core_modules()
     for pkg in ("island_sim", "island_mapping"):
         mods += _modules_under(pkg, "core")
     return mods
@@ -57,6 +63,18 @@ def test_core_modules_do_not_load_rclpy() -> None:
         mods, ("rclpy", "rosidl_parser", "sensor_msgs", "nav_msgs", "geometry_msgs", "matplotlib")
     )
     assert bad == [], f"core modules pulled in: {bad}"
+
+
+def test_import_contract_covers_every_ros_free_module_of_island_msgs_py() -> None:
+    """A new module of island_msgs_py is either message-facing or in the no-ROS contract."""
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
+    sources = [set(c["source_modules"]) for c in config["contracts"]
+               if "rclpy" in c.get("forbidden_modules", ())]
+    core = set(_msgs_core_modules())
+    assert "island_msgs_py.types" in core
+    assert any(core <= s for s in sources), (
+        f"add {sorted(core - max(sources, key=lambda s: len(s & core)))} to the island_msgs_py "
+        "contract of pyproject.toml [tool.importlinter], or to MSGS_MESSAGE_FACING here")
 
 
 def test_mapping_core_loads_nothing_of_island_sim() -> None:

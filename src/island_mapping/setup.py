@@ -1,8 +1,45 @@
+import os
+import stat
 from glob import glob
 
 from setuptools import find_packages, setup
+from setuptools.command.develop import develop
+from setuptools.command.install import install
 
 package_name = 'island_mapping'
+
+BIN_WRAPPER = """#!/bin/sh
+# `islands` on PATH after `colcon build && . install/setup.sh`: the console script itself is
+# installed where `ros2 run island_mapping islands` looks (setup.cfg), which is not on PATH.
+exec "$(dirname "$0")/../lib/island_mapping/islands" "$@"
+"""
+
+
+def _bin_wrapper(scripts_dir):
+    """When the console scripts go to <prefix>/lib/island_mapping (colcon, setup.cfg), put an
+    `islands` that runs them in <prefix>/bin, which colcon's setup.sh adds to PATH."""
+    scripts_dir = os.path.normpath(scripts_dir)
+    if not scripts_dir.endswith(os.path.join('lib', package_name)):
+        return  # a wheel or a plain pip install: the scripts are on bin already
+    bin_dir = os.path.join(os.path.dirname(os.path.dirname(scripts_dir)), 'bin')
+    os.makedirs(bin_dir, exist_ok=True)
+    path = os.path.join(bin_dir, 'islands')
+    with open(path, 'w') as f:
+        f.write(BIN_WRAPPER)
+    os.chmod(path, os.stat(path).st_mode | stat.S_IXUSR | stat.S_IXGRP | stat.S_IXOTH)
+
+
+class InstallWithBin(install):
+    def run(self):
+        super().run()
+        _bin_wrapper(self.install_scripts)
+
+
+class DevelopWithBin(develop):
+    def run(self):
+        super().run()
+        _bin_wrapper(self.script_dir)
+
 
 setup(
     name=package_name,
@@ -24,6 +61,7 @@ setup(
     ),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
+    cmdclass={'install': InstallWithBin, 'develop': DevelopWithBin},
     entry_points={
         'console_scripts': [
             'island_builder_node = island_mapping.nodes.island_builder_node:main',

@@ -40,7 +40,9 @@ def record_sim_run(ctx: Any, out_dir: Path, sim_s: float, seed: int = 0,
         p("sim.lockstep", True), p("sim.stop_after_s", sim_s)])
     sonar = SonarNode(context=ctx, parameter_overrides=[
         *sim_time, p("world", world), p("seed", seed + 1)])
-    follower = HallFollowerNode(context=ctx, parameter_overrides=sim_time)
+    # no mapper claims the robot here: the follower drives at once
+    follower = HallFollowerNode(context=ctx,
+                                parameter_overrides=[*sim_time, p("autostart", True)])
     rec_node = rclpy.create_node("recorder", context=ctx)
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(rec_node)

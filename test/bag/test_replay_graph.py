@@ -69,7 +69,7 @@ def test_replay_reproduces_the_recorded_graph(
     topics = open_bag(recorded_run / "run_bag").topics
     for topic in ("/odom", "/ground_truth", "/sonar/scan"):
         assert report["messages"][topic] == topics[topic].message_count > 0  # none dropped
-    for topic in ("/clock", "/hall_follower/strategy"):  # only the newest before each scan
+    for topic in ("/clock", "/hall_follower/progress"):  # only the newest before each scan
         assert (report["messages"][topic] + report["superseded"][topic]
                 == topics[topic].message_count)
     assert json.loads((out / "replay.json").read_text()) == report

@@ -18,7 +18,7 @@ def test_eval_relations_writes_metrics_and_islands_figure(shared_data: Path, tmp
     rc = main([
         "eval-relations", "--log", str(shared_data / "intel" / "intel.gfs.log"),
         "--relations", str(shared_data / "intel" / "intel.relations"), "--out", str(out),
-        "--max-scans", "30", "--seed", "3",
+        "--max-scans", "30", "--seed", "3", "--time-offset-s", "976052857.338",
     ])
     assert rc == 0
     m = json.loads((out / "metrics.json").read_text())
@@ -29,15 +29,23 @@ def test_eval_relations_writes_metrics_and_islands_figure(shared_data: Path, tmp
     assert m["scans"] == 30 and m["seed"] == 3 and m["beams"] == 180
     assert m["place_recognition"] is False and m["revisit_relations_covered"] == 0
     assert m["island_count"] >= 1
+    # The README's offset gives its GMapping figure; the geometry is read from the log.
     assert round(m["gmapping_all_relations"]["mean_trans_err_m"], 3) == 0.065
+    assert m["time_offset"]["source"].startswith("given")
+    assert m["geometry"]["beams"] == 180 and m["geometry"]["increment_deg"] == 1.0
+    assert m["log"] == "intel.gfs.log"
     b = m["bridged"]
     assert b["covered_relations"] >= 1
     assert b["mean_trans_err_m"] < 0.1
     assert b["gmapping_same_relations"]["count"] == b["covered_relations"]
     assert (out / "islands.png").read_bytes()[:8] == PNG_MAGIC
     assert not list(out.glob(".*tmp*"))  # atomic writes leave no temporaries
-    printed = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    printed_lines = capsys.readouterr().out.strip().splitlines()
+    printed = json.loads(printed_lines[-1])
     assert printed["island_count"] == m["island_count"]
+    # The console gives the headline (bridged) figures, not only the strict ones.
+    assert any("bridged, headline" in ln and f"{b['covered_relations']} covered" in ln
+               for ln in printed_lines)
 
 
 def test_eval_relations_bad_relations_file_exit_2_with_line(shared_data: Path, tmp_path: Path,

@@ -21,7 +21,7 @@ def files(tmp_path: Path) -> dict[str, Path]:
             f"{c}: &{c} [{', '.join(['*' + p] * 9)}]\n"
             for p, c in zip("abcdefgh", "bcdefghi", strict=True)) + "segments: *i\n",
         "carmen.log": "ODOM 0 0 0 0 0 0 1e12 pippo 1e12\n"
-                      "FLASER 2 1.0 1.0 0 0 0 0 0 0 1e12 pippo 1e12\n",
+                      "FLASER 180 " + "1.0 " * 180 + "0 0 0 0 0 0 1e12 pippo 1e12\n",
         "plain": "x",
     }
     out = {}

@@ -16,7 +16,7 @@ import yaml
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from island_mapping.core.builder import BuilderConfig
 from island_mapping.core.tracker import TrackerConfig
-from island_mapping.nodes.island_builder_node import LATCHED, IslandBuilderNode
+from island_mapping.nodes.island_builder_node import IslandBuilderNode, IslandBuilderNodeConfig
 from island_mapping.nodes.island_localizer_node import IslandLocalizerNode
 from island_mapping.nodes.topo_graph_server_node import TopoGraphServerNode
 from island_sim.nodes.hall_follower_node import HallFollowerNode
@@ -108,10 +108,11 @@ def test_bad_messages_are_counted_and_never_kill_the_nodes(
     ros_context: Any, spin: Any
 ) -> None:
     ctx = ros_context
-    builder = IslandBuilderNode(context=ctx)
+    # no follower nor graph server here: map at once
+    builder = IslandBuilderNode(context=ctx, parameter_overrides=[_p("wait_for_services", False)])
     localizer = IslandLocalizerNode(context=ctx)
     probe = Node("builder_bad_input_probe", context=ctx)
-    strat = probe.create_publisher(String, "/hall_follower/strategy", LATCHED)
+    strat = probe.create_publisher(String, "/hall_follower/progress", QOS)
     scan_pub = probe.create_publisher(LaserScan, "/sonar/scan", QOS)
     odom_pub = probe.create_publisher(Odometry, "/odom", QOS)
     ev_pub = probe.create_publisher(String, "/island_builder/events", QOS)
@@ -160,10 +161,13 @@ def _flatten_yaml(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
     return out
 
 
-@pytest.mark.parametrize(("node", "prefix", "default"), [
-    ("island_builder_node", "builder.", BuilderConfig()),
-    ("island_localizer_node", "tracker.", TrackerConfig()),
+@pytest.mark.parametrize(("node", "defaults"), [
+    ("island_builder_node", {"": IslandBuilderNodeConfig(), "builder.": BuilderConfig()}),
+    ("island_localizer_node", {"tracker.": TrackerConfig()}),
 ])
-def test_yaml_repeats_the_config_defaults(node: str, prefix: str, default: Any) -> None:
+def test_yaml_repeats_the_config_defaults(node: str, defaults: dict[str, Any]) -> None:
     doc = yaml.safe_load((CONFIG_DIR / f"{node}.yaml").read_text())
-    assert _flatten_yaml(doc[node]["ros__parameters"]) == _flatten(default, prefix)
+    want: dict[str, Any] = {}
+    for prefix, default in defaults.items():
+        want.update(_flatten(default, prefix))
+    assert _flatten_yaml(doc[node]["ros__parameters"]) == want

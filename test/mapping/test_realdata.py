@@ -103,7 +103,8 @@ def test_gmapping_baseline_reproduces_the_published_figures(
     track = intel_track
     rel = rel_files.read_relations(shared_data / "intel" / "intel.relations")
     assert len(rel) == 2984
-    stats = rel_core.ErrorStats.of(*rel_core.gmapping_relation_errors(track, rel))
+    stats = rel_core.ErrorStats.of(*rel_core.gmapping_relation_errors(
+        track, rel, rel_core.INTEL_LOG_TO_UNIX_S))
     assert stats.count == 2984
     assert round(stats.mean_trans_err_m, 3) == 0.065
     assert round(stats.median_trans_err_m, 3) == 0.048
@@ -340,3 +341,18 @@ def test_real_data_modules_do_not_load_rclpy_or_matplotlib() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+def test_relation_time_offset_is_found_from_the_log(
+    shared_data: Path, intel_track: rel_core.PoseTrack
+) -> None:
+    rel = rel_files.read_relations(shared_data / "intel" / "intel.relations")
+    found = rel_core.find_time_offset(np.concatenate([rel.t1_s, rel.t2_s]), intel_track.times_s)
+    # The README's 976052857.338 s to within the log's time resolution; every relation time
+    # then lies on a log line.
+    assert abs(found.offset_s - rel_core.INTEL_LOG_TO_UNIX_S) < 0.002
+    assert found.matched == found.times == 1791
+    # Relations of another log are refused, not scored against the wrong times.
+    with pytest.raises(rel_core.RelationsError, match="not of this log"):
+        rel_core.find_time_offset(rel.t1_s[:50] + 0.5 * np.arange(50) % 0.37,
+                                  intel_track.times_s[:40])

@@ -43,7 +43,7 @@ def test_score_relations_uses_island_frame_poses_of_the_same_island() -> None:
         t2_s=np.array([20.0, 30.0, 40.0, 20.5]) + u,  # same island; other island; none; no scan
         rel=np.array([[1.05, 0.0, math.radians(88.0)], [0, 0, 0], [0, 0, 0], [1.0, 0, 0]]),
     )
-    score = rd.score_relations(run, scan_t, rel)
+    score = rd.score_relations(run, scan_t, rel, offset_s=u)
     assert score.covered.tolist() == [True, False, False, False]
     assert score.trans_err_m[0] == pytest.approx(0.05)
     assert score.rot_err_deg[0] == pytest.approx(2.0)
@@ -51,7 +51,7 @@ def test_score_relations_uses_island_frame_poses_of_the_same_island() -> None:
     assert np.isnan(score.trans_err_m[1:]).all()
     # Two times 8 ms apart that both fall on scan 1: the log cannot resolve them.
     pair = rd.Relations(np.array([19.996 + u]), np.array([20.004 + u]), np.array([[0.3, 0, 0]]))
-    same = rd.score_relations(run, scan_t, pair)
+    same = rd.score_relations(run, scan_t, pair, offset_s=u)
     assert same.unresolvable == 1 and not same.covered.any()
 
 
@@ -68,19 +68,20 @@ def test_bridging_adds_raw_odometry_from_the_nearer_localized_scan() -> None:
     run = _run([0, 0], [[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
     u = rd.INTEL_LOG_TO_UNIX_S
     rel = rd.Relations(np.array([0.0 + u]), np.array([1.0 + u]), np.array([[0.32, 0.0, 0.0]]))
-    strict = rd.score_relations(run, np.array([0.0, 4.0]), rel, track)
+    strict = rd.score_relations(run, np.array([0.0, 4.0]), rel, track, offset_s=u)
     assert not strict.covered.any()
-    bridged = rd.score_relations(run, np.array([0.0, 4.0]), rel, track, bridge_s=1.5)
+    bridged = rd.score_relations(run, np.array([0.0, 4.0]), rel, track, bridge_s=1.5,
+                                 offset_s=u)
     assert bridged.covered.tolist() == [True]
     assert bridged.trans_err_m[0] == pytest.approx(0.02)  # 0.3 m by odometry vs 0.32 m true
     # The ODOM line at 2.9 s is nearer to scan 1: its fix 1.1 m minus the 0.2 m that raw
     # odometry still moved before scan 1 = 0.9 m.
     i, p, _, _ = rd.island_poses_at(run, np.array([0.0, 4.0]), np.array([2.9 + u]), track=track,
-                                 bridge_s=1.5)
+                                 bridge_s=1.5, offset_s=u)
     assert i.tolist() == [0] and p[0, 0] == pytest.approx(0.9)
     # Too far from any scan for a 0.5 s bridge: no pose.
     i2, _, _, _ = rd.island_poses_at(run, np.array([0.0, 4.0]), np.array([1.0 + u]), track=track,
-                                  bridge_s=0.5)
+                                  bridge_s=0.5, offset_s=u)
     assert i2.tolist() == [-1]
 
 
@@ -128,7 +129,8 @@ def test_island_localization_beats_a_loose_bound_on_covered_relations(
 ) -> None:
     track, _, rel = intel
     scan_t = track.times_s[track.scan_rows[:N_SCANS]]
-    score = rd.score_relations(laser_run, scan_t, rel, track, bridge_s=1.7)
+    score = rd.score_relations(laser_run, scan_t, rel, track, bridge_s=1.7,
+                               offset_s=rd.INTEL_LOG_TO_UNIX_S)
     assert score.islands.count >= 20
     assert score.islands.mean_trans_err_m < 0.08
     assert score.islands.mean_rot_err_deg < 3.0

@@ -1,4 +1,5 @@
-"""`colcon build` puts every node executable where `ros2 run <pkg> <exe>` looks for it."""
+"""`colcon build` puts every node executable where `ros2 run <pkg> <exe>` looks for it, and
+`islands` on PATH once `install/setup.sh` is sourced."""
 
 from __future__ import annotations
 
@@ -54,3 +55,14 @@ def test_colcon_build_installs_every_console_script(tmp_path: Path) -> None:
     )
     assert run.returncode == 2, run.stderr[-2000:]
     assert "no_such_world" in run.stderr
+    # after `. install/setup.sh` the README's `islands` commands work: it is on PATH
+    install = tmp_path / "install"
+    shell = subprocess.run(
+        ["sh", "-c", f". '{install}/setup.sh' && command -v islands && islands world corridor"],
+        capture_output=True, text=True, timeout=60,
+        env={"HOME": os.environ.get("HOME", "/"), "PATH": "/usr/bin:/bin"},
+    )
+    assert shell.returncode == 0, shell.stdout[-2000:] + shell.stderr[-2000:]
+    where, world = shell.stdout.splitlines()[:2]
+    assert Path(where) == install / "island_mapping" / "bin" / "islands"
+    assert '"name": "corridor"' in world

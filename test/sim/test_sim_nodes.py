@@ -86,9 +86,9 @@ def make_sim(ctx: Any, seed: int, odo_params: list[Parameter],
     ], **lean)
     sonar = SonarNode(context=ctx, parameter_overrides=[
         *sim_time, _p("world", "paper_fig4"), _p("seed", seed + 1)], **lean)
-    follower = HallFollowerNode(context=ctx,
-                                parameter_overrides=[*sim_time, *(follower_params or [])],
-                                **lean)
+    # autostart: no mapper claims the robot here, so the follower drives at once
+    follower = HallFollowerNode(context=ctx, parameter_overrides=[
+        *sim_time, _p("autostart", True), *(follower_params or [])], **lean)
     ex = SingleThreadedExecutor(context=ctx)
     for n in (odo, sonar, follower):
         ex.add_node(n)
@@ -163,7 +163,8 @@ def test_three_nodes_follow_halls_for_600_s_deterministically(ros_context: Any) 
         mahalanobis2 = float(d[:2] @ np.linalg.solve(cov, d[:2]))
         assert mahalanobis2 < 13.8  # chi-square, 2 dof, 99.9 %
         assert odo.robot.epsilon_m > 1.0  # hundreds of metres of random drift: clearly lost
-        # the executed strategy is published (latched) in Table 1 form
+        # the executed strategy is published (latched) in Table 1 form, up to its last
+        # completed step; the whole record is as long as the robot drove
         got: list[str] = []
         probe = Node("strategy_probe", context=ros_context)
         sim.extra.append(probe)
@@ -171,9 +172,10 @@ def test_three_nodes_follow_halls_for_600_s_deterministically(ros_context: Any) 
                                   lambda m: got.append(m.data), LATCHED)
         sim.executor.add_node(probe)
         assert sim.spin_until(lambda: bool(got), 5.0)
-        strategy = ControlStrategy.parse(got[-1])
-        assert str(strategy) == str(follower.follower.strategy())
-        assert strategy.length_m == pytest.approx(odo.robot.distance_m, rel=0.05)
+        record = follower.follower.strategy()
+        assert ControlStrategy.parse(got[-1]).steps == record.steps[:-1]
+        assert len(record.steps) > 5
+        assert record.length_m == pytest.approx(odo.robot.distance_m, rel=0.05)
         first = trace.at_120
         assert first is not None
         decisions_120 = [d for d in follower.follower.decisions if d.t_s <= 120.0]
@@ -325,27 +327,36 @@ def _call(sim: Sim, client: Any, request: Any) -> Any:
     return fut.result()
 
 
-def test_reset_and_pause_services(ros_context: Any) -> None:
+def test_reset_is_refused_while_following_and_pause_stops_commands(ros_context: Any) -> None:
     sim = make_sim(ros_context, 3, [_p("sim.real_time_factor", 10.0)],
                    [_p("follower.policy", "right_hand")])
     probe = Node("service_probe", context=ros_context)
     sim.extra.append(probe)
     sim.executor.add_node(probe)
     strategies: list[str] = []
+    progress: list[str] = []
     probe.create_subscription(String, "/hall_follower/strategy",
                               lambda m: strategies.append(m.data), LATCHED)
+    probe.create_subscription(String, "/hall_follower/progress",
+                              lambda m: progress.append(m.data), QOS)
     reset = probe.create_client(Trigger, "/hall_follower/reset")
     enable = probe.create_client(SetBool, "/hall_follower/enable")
     try:
         # Without lockstep a loaded machine drops commands (they time out), so wait for the
         # distance, not for sim time.
         assert sim.spin_until(lambda: sim.follower.follower.strategy().length_m > 0.3, 60.0)
-        assert _call(sim, reset, Trigger.Request()).success
-        # the latched record restarts: empty, then a short Go since the reset
-        assert sim.spin_until(
-            lambda: bool(strategies) and ControlStrategy.parse(strategies[-1]).length_m < 0.3, 5.0)
+        # while following, the record is the strategy of the edge being driven: not reset
+        resp = _call(sim, reset, Trigger.Request())
+        assert not resp.success and "pause it first" in resp.message
+        assert sim.follower.follower.strategy().length_m > 0.3
         resp = _call(sim, enable, SetBool.Request(data=False))
         assert resp.success and "paused" in resp.message
+        # at the pause the whole record is latched
+        paused_at = str(sim.follower.follower.strategy())
+        assert sim.spin_until(lambda: bool(strategies) and strategies[-1] == paused_at, 5.0)
+        assert ControlStrategy.parse(paused_at).length_m > 0.3
+        assert _call(sim, reset, Trigger.Request()).success
+        assert sim.spin_until(lambda: strategies[-1] == "", 5.0)  # the record restarts
         # A command published just before the pause may still be in flight: let it land first.
         before = sim.follower.scans_processed
         assert sim.spin_until(lambda: sim.follower.scans_processed > before + 2, 20.0)
@@ -355,6 +366,44 @@ def test_reset_and_pause_services(ros_context: Any) -> None:
         assert sim.odo.robot.velocity == (0.0, 0.0)  # the robot stopped (command timeout)
         assert _call(sim, enable, SetBool.Request(data=True)).success
         assert sim.spin_until(lambda: sim.odo.cmd_count > cmds + 10, 20.0)
+        # the progress stream shows the record growing again from the reset
+        assert sim.spin_until(
+            lambda: bool(progress) and 0 < ControlStrategy.parse(progress[-1]).length_m < 0.5,
+            10.0)
+    finally:
+        sim.close()
+
+
+def test_follower_holds_until_claimed_and_latches_each_completed_step(ros_context: Any) -> None:
+    sim = make_sim(ros_context, 4, [_p("sim.lockstep", True)], [_p("autostart", False)])
+    probe = Node("claim_probe", context=ros_context)
+    sim.extra.append(probe)
+    sim.executor.add_node(probe)
+    strategies: list[str] = []
+    progress: list[str] = []
+    probe.create_subscription(String, "/hall_follower/strategy",
+                              lambda m: strategies.append(m.data), LATCHED)
+    probe.create_subscription(String, "/hall_follower/progress",
+                              lambda m: progress.append(m.data), QOS)
+    enable = probe.create_client(SetBool, "/hall_follower/enable")
+    try:
+        # unclaimed: a zero command per scan keeps the lockstep going, the robot stays put
+        assert sim.spin_until(lambda: sim.odo.sim_time_ns >= 5 * 10**9, 30.0)
+        assert sim.odo.robot.distance_m == 0.0 and sim.odo.lockstep_timeouts == 0
+        assert sim.follower.scans_processed >= 50 and not sim.follower.claimed
+        assert _call(sim, enable, SetBool.Request(data=True)).success
+        assert sim.spin_until(lambda: sim.odo.sim_time_ns >= 120 * 10**9, 90.0)
+        record = sim.follower.follower.strategy()
+        assert sim.odo.robot.distance_m > 20.0 and len(record.steps) >= 3
+        # latched on change of its steps only: one message per completed step (and the
+        # empty record at start), each a prefix of the record; the progress on every change
+        assert sim.spin_until(lambda: strategies[-1:] == [str(ControlStrategy(
+            record.steps[:-1]))], 5.0), (strategies[-3:], str(record))
+        assert len(strategies) <= len(record.steps) + 1
+        for text in strategies:
+            steps = ControlStrategy.parse(text).steps
+            assert steps == record.steps[:len(steps)]
+        assert len(progress) > 10 * len(strategies)
     finally:
         sim.close()
 

@@ -36,7 +36,7 @@ def test_nodes_in_separate_processes_drive_the_robot(ros_context: Any) -> None:
     extra = {
         "odometry_node": ["-p", "sim.real_time_factor:=4.0", "-p", "seed:=5"],
         "sonar_node": sim_time,
-        "hall_follower_node": sim_time,
+        "hall_follower_node": [*sim_time, "-p", "autostart:=true"],
     }
     procs = [
         subprocess.Popen(

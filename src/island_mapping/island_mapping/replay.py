@@ -2,9 +2,11 @@
 
 `replay_run(bag_path)` creates, on one in-process executor with `use_sim_time`, a new
 island_builder_node and topo_graph_server_node (memory only) and a player node that publishes
-the recorded /clock, /odom, /ground_truth, /sonar/scan and /hall_follower/strategy messages in
+the recorded /clock, /odom, /ground_truth, /sonar/scan and /hall_follower/progress messages in
 the order they were recorded (see `recorded_order`: the order the run's nodes received them,
-not log-time order). Delivery is made deterministic: every subscription callback of the two
+not log-time order; a recording made before the follower had a progress topic carries the same
+record, on every change, on /hall_follower/strategy, which is then replayed as the progress).
+Delivery is made deterministic: every subscription callback of the two
 nodes is wrapped with a counter, and the executor is spun until each subscription has run its
 callback for every message published so far before anything else is published. Each scan goes
 alone; the messages between two scans (odometry, ground truth, strategy: the builder only
@@ -59,20 +61,24 @@ from island_mapping.bag.reader import BagMessage, BagReader, open_bag
 from island_mapping.bag.recover import scan_mcap
 from island_mapping.bag.schema import full_type_name
 from island_mapping.core.graph import TopoGraph
-from island_mapping.nodes.island_builder_node import LATCHED, STREAM_QOS, IslandBuilderNode
+from island_mapping.nodes.island_builder_node import STREAM_QOS, IslandBuilderNode
 from island_mapping.nodes.topo_graph_server_node import TopoGraphServerNode
 
 CLOCK_TOPIC = "/clock"
 ODOM_TOPIC = "/odom"
 TRUTH_TOPIC = "/ground_truth"
 SCAN_TOPIC = "/sonar/scan"
+PROGRESS_TOPIC = "/hall_follower/progress"
 STRATEGY_TOPIC = "/hall_follower/strategy"
+"""Before the progress topic existed, the follower published its record on every change here."""
 EVENTS_TOPIC = "/island_builder/events"
-REPLAYED_TOPICS = (CLOCK_TOPIC, ODOM_TOPIC, TRUTH_TOPIC, SCAN_TOPIC, STRATEGY_TOPIC)
-"""What the builder (and the graph server's clock) consume in a run."""
-LATEST_ONLY_TOPICS = (CLOCK_TOPIC, STRATEGY_TOPIC)
+REPLAYED_TOPICS = (CLOCK_TOPIC, ODOM_TOPIC, TRUTH_TOPIC, SCAN_TOPIC, PROGRESS_TOPIC,
+                   STRATEGY_TOPIC)
+"""What the builder (and the graph server's clock) consume in a run (STRATEGY_TOPIC only from a
+recording without PROGRESS_TOPIC, replayed as the progress)."""
+LATEST_ONLY_TOPICS = (CLOCK_TOPIC, PROGRESS_TOPIC, STRATEGY_TOPIC)
 """Topics whose subscribers keep only the newest message (depth 1: the time sources' /clock,
-the builder's latched strategy, which `set_strategy` overwrites)."""
+the builder's follower record, which `set_strategy` overwrites)."""
 REQUIRED_TOPICS = (ODOM_TOPIC, SCAN_TOPIC)
 """Without these the builder decides nothing; the others are optional (warned when missing)."""
 EVENTS_QOS = QoSProfile(depth=1000)
@@ -307,7 +313,9 @@ class _Replayer:
         self.reader = reader
         self.config = config
         sim_time = Parameter("use_sim_time", value=True)
-        overrides = [sim_time] + [Parameter(k, value=v) for k, v in (builder_params or {}).items()]
+        # Nobody answers the follower calls in a replay: map at once.
+        overrides = [sim_time, Parameter("wait_for_services", value=False)] + [
+            Parameter(k, value=v) for k, v in (builder_params or {}).items()]
         # No parameter services: nobody can reach them in a replay, and fewer entities make
         # every executor wait cheaper (one per replayed message).
         try:
@@ -330,12 +338,16 @@ class _Replayer:
         self.bad_events = 0
         self.player.create_subscription(String, EVENTS_TOPIC, self._on_event, EVENTS_QOS)
         self.topics = [t for t in REPLAYED_TOPICS if t in reader.topics]
+        if PROGRESS_TOPIC in self.topics and STRATEGY_TOPIC in self.topics:
+            self.topics.remove(STRATEGY_TOPIC)  # the sparse latched record: the builder reads none
+        self.target = {t: PROGRESS_TOPIC if t == STRATEGY_TOPIC else t for t in self.topics}
+        """Recorded topic -> the topic it is replayed on."""
         self.publishers: dict[str, Any] = {}
         for topic in self.topics:
             type_name = reader.topics[topic].type_name
             cls = _message_class(topic, type_name)
-            qos = LATCHED if topic == STRATEGY_TOPIC else STREAM_QOS
-            self.publishers[topic] = self.player.create_publisher(cls, topic, qos)
+            self.publishers[topic] = self.player.create_publisher(cls, self.target[topic],
+                                                                  STREAM_QOS)
         self.counter = _DeliveryCounter([self.builder, self.server])
         # Scans the builder core has processed (the node holds a scan back until odometry of
         # its stamp or later has come): wrapped like the callbacks, the method is unchanged.
@@ -373,7 +385,7 @@ class _Replayer:
         """Every replayed topic matched by the nodes, and /topo_graph/add available."""
         def ready() -> bool:
             return self.builder.add_cli.service_is_ready() and all(
-                p.get_subscription_count() >= self.counter.subscriptions.get(t, 0)
+                p.get_subscription_count() >= self.counter.subscriptions.get(self.target[t], 0)
                 for t, p in self.publishers.items()
             )
 
@@ -390,7 +402,7 @@ class _Replayer:
 
     def check_isolated(self) -> None:
         """No other process may publish what the builder consumes (it would change the map)."""
-        foreign = {t: self.player.count_publishers(t) - 1 for t in self.publishers}
+        foreign = {t: self.player.count_publishers(self.target[t]) - 1 for t in self.publishers}
         foreign = {t: n for t, n in foreign.items() if n > 0}
         if foreign:
             domain = os.environ.get("ROS_DOMAIN_ID", "0")
@@ -408,8 +420,9 @@ class _Replayer:
         """
         expected = dict(self.counter.count)
         for m in batch:
-            n_subs = self.counter.subscriptions.get(m.topic, 0)
-            expected[m.topic] = expected.get(m.topic, 0) + n_subs
+            target = self.target[m.topic]
+            n_subs = self.counter.subscriptions.get(target, 0)
+            expected[target] = expected.get(target, 0) + n_subs
             self.publishers[m.topic].publish(m.data)
             self.published[m.topic] += 1
 
@@ -584,6 +597,8 @@ def open_recording(
             f"(topics: {', '.join(sorted(reader.topics)) or 'none'})"
         )
     for t in REPLAYED_TOPICS:
+        if t == STRATEGY_TOPIC or (t == PROGRESS_TOPIC and STRATEGY_TOPIC in reader.topics):
+            continue  # an older recording's strategy topic carries the progress
         if t not in reader.topics and t not in REQUIRED_TOPICS:
             warnings.append(f"{reader.path} has no {t}; replaying without it")
     return reader, warnings

@@ -51,6 +51,9 @@ OBSERVER_QOS = QoSProfile(depth=1000)
 """Deep enough that a burst of ground truth between two spins is never dropped."""
 RECORDER_MATCH_WAIT_S = 5.0
 """Wall time to wait for the recorder to match the run's publishers before the clock starts."""
+BUILDER_READY_WAIT_S = 10.0
+"""Wall time to wait for the builder to find its services and subscribe before the clock
+starts (it maps from the first step, so a recording replays into the same events)."""
 PRIVATE_DOMAIN_MIN, PRIVATE_DOMAIN_MAX = 102, 232
 """Domains picked for unattended runs: valid for Fast DDS on Linux, above those tests use."""
 NODE_NAMES = ("odometry_node", "sonar_node", "hall_follower_node", "island_builder_node",
@@ -120,9 +123,9 @@ class _Observer(Node):
         self.truth: list[tuple[float, float, float, float]] = []
         self.odom: list[tuple[float, float, float, float]] = []
         self.events: list[dict[str, Any]] = []
-        self.create_subscription(Odometry, "/ground_truth", self._on_truth, OBSERVER_QOS)
-        self.create_subscription(Odometry, "/odom", self._on_odom, OBSERVER_QOS)
-        self.create_subscription(String, "/island_builder/events", self._on_event, OBSERVER_QOS)
+        self.create_subscription(Odometry, "ground_truth", self._on_truth, OBSERVER_QOS)
+        self.create_subscription(Odometry, "odom", self._on_odom, OBSERVER_QOS)
+        self.create_subscription(String, "island_builder/events", self._on_event, OBSERVER_QOS)
 
     @staticmethod
     def _row(msg: Odometry) -> tuple[float, float, float, float]:
@@ -225,7 +228,10 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
             recorder = RunRecorder(observer, cfg.record_dir)
             _wait_for_recorder(executor, recorder)
         for n in nodes[:-1]:
-            executor.add_node(n)
+            if n is not odo:
+                executor.add_node(n)
+        _wait_for_builder(executor, builder)
+        executor.add_node(odo)  # the clock starts
         wall0 = time.monotonic()
         last_report = -1.0
         while not odo.finished:
@@ -267,6 +273,18 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
         for n in nodes:
             n.destroy_node()
         ctx.try_shutdown()
+
+
+def _wait_for_builder(executor: SingleThreadedExecutor, builder: IslandBuilderNode) -> None:
+    """Spin until the builder maps (its services found) and hears the robot's topics."""
+    deadline = time.monotonic() + BUILDER_READY_WAIT_S
+    while time.monotonic() < deadline:
+        if builder.mapping and all(s.get_publisher_count() > 0 for s in builder.subscriptions
+                                   if s.topic_name != "/clock"):
+            return
+        executor.spin_once(timeout_sec=0.05)
+    raise RunError(f"island_builder_node did not start mapping within {BUILDER_READY_WAIT_S:g} "
+                   "s wall (its services or the robot's topics were not found)")
 
 
 def _wait_for_recorder(executor: SingleThreadedExecutor, recorder: RunRecorder) -> None:

@@ -116,6 +116,12 @@ def _yaml_problem(exc: yaml.YAMLError) -> str:
     return one_line(str(exc))
 
 
+def _line(event: yaml.Event) -> int:
+    """The 1-based line where a parser event starts (0 when the parser gave no position)."""
+    mark = event.start_mark
+    return mark.line + 1 if mark is not None else 0
+
+
 def check_yaml_events(text: str, source: str, error: ErrorType = InputError,
                       max_depth: int = MAX_YAML_DEPTH,
                       max_alias_nodes: int = MAX_YAML_ALIAS_NODES) -> None:
@@ -130,7 +136,7 @@ def check_yaml_events(text: str, source: str, error: ErrorType = InputError,
                 open_nodes.append((ev.anchor, total))
                 total += 1
                 if len(open_nodes) > max_depth:
-                    _fail(error, f"{source}: line {ev.start_mark.line + 1}: YAML nested more than "
+                    _fail(error, f"{source}: line {_line(ev)}: YAML nested more than "
                                  f"{max_depth} deep (the limit)")
             elif isinstance(ev, yaml.CollectionEndEvent):
                 anchor, start = open_nodes.pop()
@@ -143,14 +149,14 @@ def check_yaml_events(text: str, source: str, error: ErrorType = InputError,
             elif isinstance(ev, yaml.AliasEvent):
                 if ev.anchor not in sizes:
                     if any(a == ev.anchor for a, _ in open_nodes):
-                        _fail(error, f"{source}: line {ev.start_mark.line + 1}: alias *{ev.anchor}"
+                        _fail(error, f"{source}: line {_line(ev)}: alias *{ev.anchor}"
                                      " refers to a node that contains it (a recursive structure)")
-                    _fail(error, f"{source}: line {ev.start_mark.line + 1}: undefined alias "
+                    _fail(error, f"{source}: line {_line(ev)}: undefined alias "
                                  f"*{ev.anchor}")
                 total += sizes[ev.anchor]
                 alias_nodes += sizes[ev.anchor]
                 if alias_nodes > max_alias_nodes:
-                    _fail(error, f"{source}: line {ev.start_mark.line + 1}: YAML aliases stand for "
+                    _fail(error, f"{source}: line {_line(ev)}: YAML aliases stand for "
                                  f"more than {max_alias_nodes} nodes (the limit; an alias bomb?)")
     except yaml.YAMLError as exc:
         _fail(error, f"{source}: not valid YAML: {_yaml_problem(exc)}")

@@ -1,4 +1,4 @@
-"""/sonar/scan and /odom for a node that acts on each scan with the odometry of its stamp.
+"""sonar/scan and odom for a node that acts on each scan with the odometry of its stamp.
 
 The message side of `island_msgs_py.stamps.ScanOdomPairer`, shared by the hall follower and the
 island localizer nodes: converts both topics, feeds the pairer and hands every released scan
@@ -36,7 +36,8 @@ def subscribe_paired_scans(
     handle: Callable[[list[Paired[ScanArrays]]], None],
     warn: Callable[[str, Exception], None],
 ) -> ScanOdomPairer[ScanArrays]:
-    """Subscribe `node` to /odom and /sonar/scan; returns the pairer (for its counters)."""
+    """Subscribe `node` to odom and sonar/scan (relative: in its namespace); returns the pairer
+    (for its counters)."""
     pairer: ScanOdomPairer[ScanArrays] = ScanOdomPairer(max_buffer)
 
     def on_odom(msg: Odometry) -> None:
@@ -44,7 +45,7 @@ def subscribe_paired_scans(
             pose, _, t_ns = odometry_to_pose(msg)
             check_stamp(t_ns, clock_ns(node), "/odom")
         except ConversionError as exc:
-            warn("/odom", exc)
+            warn("odom", exc)
             return
         handle(pairer.odometry(t_ns, pose))
 
@@ -54,13 +55,13 @@ def subscribe_paired_scans(
             t_ns = time_to_ns(msg.header.stamp)
             check_stamp(t_ns, clock_ns(node), "/sonar/scan")
         except ConversionError as exc:
-            warn("/sonar/scan", exc)
+            warn("sonar/scan", exc)
             return
         dropped = pairer.dropped_scans
         handle(pairer.scan(t_ns, scan))
         if pairer.dropped_scans > dropped:
-            warn("/sonar/scan", ValueError("no odometry at or after a scan's stamp"))
+            warn("sonar/scan", ValueError("no odometry at or after a scan's stamp"))
 
-    node.create_subscription(Odometry, "/odom", on_odom, STREAM_QOS)
-    node.create_subscription(LaserScan, "/sonar/scan", on_scan, STREAM_QOS)
+    node.create_subscription(Odometry, "odom", on_odom, STREAM_QOS)
+    node.create_subscription(LaserScan, "sonar/scan", on_scan, STREAM_QOS)
     return pairer

@@ -5,7 +5,8 @@ CARMEN parser).
 a malformed log is a CarmenFormatError (a BagError) naming the file and line.
 
 `import_carmen(log, out_dir, beams=None)` writes sensor_msgs/LaserScan on /scan (frame
-base_laser, angle_min -90 deg, 1 deg increment), the raw odometry as nav_msgs/Odometry on /odom
+base_laser; angle_min and angle_increment of the geometry read from the log, `logs.geometry`,
+or given as a `GeometryOverride`), the raw odometry as nav_msgs/Odometry on /odom
 (at every ODOM line, with a covariance grown by a simple drift model), the GMapping pose as
 nav_msgs/Odometry on /gmapping_pose (reference only, frame map) and rosgraph_msgs/Clock on
 /clock. Times are the log's own timestamps (seconds since the log start) as sim time; the bag's
@@ -32,6 +33,8 @@ from island_mapping.logs.carmen import (
     CarmenLog,
     FloatArray,
 )
+from island_mapping.logs.errors import LogFormatError
+from island_mapping.logs.geometry import GeometryOverride
 
 __all__ = [
     "FLASER_ANGLE_INCREMENT_RAD",
@@ -51,11 +54,13 @@ SONAR_BEAM_CHOICES = (16, 24)
 """Beam counts of the sonar-like mode (a 16-sonar Nomad ring, a 24-sonar SCITOS ring)."""
 
 
-def read_carmen(path: str | os.PathLike[str]) -> CarmenLog:
-    """The scans and raw odometry of a CARMEN log (logs.carmen), bad input as CarmenFormatError."""
+def read_carmen(path: str | os.PathLike[str],
+                override: GeometryOverride | None = None) -> CarmenLog:
+    """The scans and raw odometry of a CARMEN log (logs.carmen), bad input (a line, the scan
+    geometry, the times) as CarmenFormatError."""
     try:
-        return logs_carmen.carmen_log(logs_carmen.read_carmen_records(path))
-    except logs_carmen.CarmenFormatError as exc:
+        return logs_carmen.carmen_log(logs_carmen.read_carmen_records(path), override)
+    except LogFormatError as exc:
         raise CarmenFormatError(str(exc)) from None
 
 
@@ -180,6 +185,7 @@ def import_carmen(
     out_dir: str | os.PathLike[str],
     beams: int | None = None,
     config: CarmenImportConfig | None = None,
+    override: GeometryOverride | None = None,
 ) -> ImportReport:
     """Write a CARMEN log as a rosbag2 MCAP directory (see module docstring)."""
     from rosgraph_msgs.msg import Clock
@@ -189,14 +195,15 @@ def import_carmen(
     cfg = config or CarmenImportConfig()
     if beams is not None and beams not in SONAR_BEAM_CHOICES:
         raise BagError(f"--beams must be one of {SONAR_BEAM_CHOICES}, got {beams}")
-    log = read_carmen(log_path)
+    log = read_carmen(log_path, override)
+    assert log.geometry is not None
     _check_times(log_path, "scan", log.scan_log_times_s)
     _check_times(log_path, "ODOM", log.odom_times_s)
     n_in = log.ranges_m.shape[1]
     idx = sonar_like_indices(n_in, beams) if beams else np.arange(n_in)
     step = (n_in / beams) if beams else 1.0
-    angle_min = FLASER_ANGLE_MIN_RAD + float(idx[0]) * FLASER_ANGLE_INCREMENT_RAD
-    increment = step * FLASER_ANGLE_INCREMENT_RAD
+    angle_min = log.geometry.angle_min_rad + float(idx[0]) * log.geometry.increment_rad
+    increment = step * log.geometry.increment_rad
     var_xy, var_th = _drift_variances(log.odom_raw, cfg)
     # Events in file order (ODOM lines before scan i carry odom_scan_index i), log times
     # non-decreasing; scan header stamps keep the logged times.

@@ -65,6 +65,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="output bag directory (must not exist)")
     p.add_argument("--beams", type=int, default=None, choices=(16, 24),
                    help="sonar-like mode: keep this many evenly spaced beams")
+    from island_mapping.cli.eval_relations import add_geometry_arguments
+
+    add_geometry_arguments(p)
 
 
 def _fmt_time(ns: int) -> str:
@@ -193,8 +196,9 @@ def _recover(args: argparse.Namespace) -> int:
 
 def _import_carmen(args: argparse.Namespace) -> int:
     from island_mapping.bag.carmen import import_carmen
+    from island_mapping.cli.eval_relations import geometry_override
 
-    rep = import_carmen(args.log, args.out, beams=args.beams)
+    rep = import_carmen(args.log, args.out, beams=args.beams, override=geometry_override(args))
     print(f"wrote {rep.scans} scans ({rep.beams} beams) and {rep.odometry} odometry messages "
           f"to {rep.out_dir}")
     return 0

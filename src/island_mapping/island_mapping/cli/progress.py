@@ -1,42 +1,47 @@
-"""A one-line progress bar for long `islands` commands (no dependency)."""
+"""Progress display for long `islands` commands: a `progress(done, total)` callback over tqdm."""
 
 from __future__ import annotations
 
-import math
 import sys
-import time
-from typing import Any
+from typing import NoReturn, TextIO
+
+from tqdm import tqdm
+
+# Redraw at most this often on a terminal [s].
+TTY_INTERVAL_S = 0.2
+# Elsewhere (a log file, CI) tqdm cannot redraw in place: a new status this often [s].
+LOG_INTERVAL_S = 10.0
 
 
 class ProgressBar:
-    """A one-line text progress bar on a stream (no dependency): `label [####....] 40/100`."""
+    """A `progress(done, total)` callback that shows a tqdm bar on `stream` (stderr by default):
+    `label:  40%|####      | 40/100 [00:02<00:03, 19.8it/s]`. The bar closes (and ends its
+    line) when `done` reaches `total`; a later call with another total starts a new bar."""
 
-    def __init__(self, label: str, stream: Any = None, width: int = 30,
-                 min_interval_s: float = 0.2) -> None:
+    def __init__(self, label: str, stream: TextIO | None = None) -> None:
         self.label = label
         self.stream = stream if stream is not None else sys.stderr
-        self.width = width
-        self.min_interval_s = min_interval_s
-        self._last = -math.inf
-        self._last_tenth = -1
         isatty = getattr(self.stream, "isatty", None)
-        self._tty = bool(isatty and isatty())
+        self._interval_s = TTY_INTERVAL_S if isatty is not None and isatty() else LOG_INTERVAL_S
+        self._bar: tqdm[NoReturn] | None = None  # a bar without an iterable
+        self._finished_total: int | None = None  # the total of the bar that last completed
 
     def __call__(self, done: int, total: int) -> None:
-        now = time.monotonic()
-        frac = done / total if total else 1.0
-        if not self._tty:  # a log file: one line per tenth, no carriage returns
-            tenth = min(10, int(frac * 10))
-            if tenth > self._last_tenth:
-                self._last_tenth = tenth
-                self.stream.write(f"{self.label}: {tenth * 10}% ({done}/{total})\n")
-                self.stream.flush()
-            return
-        if done < total and now - self._last < self.min_interval_s:
-            return
-        self._last = now
-        filled = round(frac * self.width)
-        bar = "#" * filled + "." * (self.width - filled)
-        end = "\n" if done >= total else ""
-        self.stream.write(f"\r{self.label} [{bar}] {done}/{total}{end}")
-        self.stream.flush()
+        if self._bar is None and done >= total and total == self._finished_total:
+            return  # that bar is complete and shown already
+        bar = self._bar
+        if bar is None or bar.total != total:
+            self.close()
+            self._finished_total = None
+            bar = self._bar = tqdm(total=total, desc=self.label, file=self.stream, leave=True,
+                                   mininterval=self._interval_s, dynamic_ncols=True)
+        bar.update(done - bar.n)
+        if done >= total:
+            self.close()
+            self._finished_total = total
+
+    def close(self) -> None:
+        """End the current bar (its last state stays on the stream)."""
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None

@@ -1,8 +1,9 @@
 """islands replay: rebuild the island graph from a recorded run.
 
   islands replay BAG --out DIR [--reference GRAPH] [--allow-damaged] [--builder-param K=V ...]
+  islands replay BAG --passive --out DIR [--relations FILE] [--reference TRAJECTORY] ...
 
-Replays the recorded /clock, /odom, /ground_truth, /sonar/scan and /hall_follower/strategy of
+Replays the recorded /clock, /odom, /ground_truth, /sonar/scan and /hall_follower/progress of
 BAG (a rosbag2 directory such as `islands explore`'s run_bag/, or its .mcap file) into a fresh
 island builder and graph server in the recorded order, awaiting each message's delivery before
 the next scan goes out (see island_mapping.replay and docs/replay.md), and writes
@@ -45,7 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("bag", help="rosbag2 directory (e.g. explore's run_bag/) or .mcap file")
     parser.add_argument("--out", required=True, help="output directory (created)")
     parser.add_argument("--reference", default=None,
-                        help="graph to compare with (default: BAG_DIR/../graph.json if present)")
+                        help="graph to compare with (default: BAG_DIR/../graph.json if present); "
+                             "with --passive: a reference trajectory (t x y theta or TUM "
+                             "lines)")
     parser.add_argument("--allow-damaged", action="store_true",
                         help="replay the intact part of a truncated or corrupted bag (warned)")
     parser.add_argument("--builder-param", action="append", default=[], metavar="NAME=VALUE",
@@ -54,6 +57,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tol", type=number(0.0), default=1e-9,
                         help="comparison tolerance (absolute up to 1, relative above) [-]")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    from island_mapping.cli import replay_log
+
+    replay_log.add_arguments(parser)
 
 
 def _beside_bag(bag: Path, name: str) -> Path:
@@ -104,6 +110,10 @@ def run(args: argparse.Namespace) -> int:
     bag = Path(args.bag)
     if not bag.exists():
         raise CliError(f"{bag}: no such bag directory or .mcap file")
+    if args.passive:  # islands from any recording's scans and odometry (cli/replay_log.py)
+        from island_mapping.cli import replay_log
+
+        return replay_log.run(args)
     if not (args.tol >= 0):
         raise CliError(f"--tol must be >= 0, got {args.tol}")
     params = parse_assignments(args.builder_param, "--builder-param")

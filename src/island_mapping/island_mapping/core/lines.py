@@ -292,22 +292,49 @@ def fit_lines_with_support(
 ) -> tuple[FloatArray, list[IntArray]]:
     """Like `fit_lines`, also returning for each segment the indices of the input rows it fits."""
     cfg = config if config is not None else LineFitConfig()
+    finite = _finite_points(points_xy, cfg)
+    if finite is None:
+        return np.zeros((0, 4)), []
+    pts, finite_rows = finite
+    # Fit, then merge collinear neighbours until nothing changes.
+    items = _fitted_groups(pts, cfg)
+    for _ in range(_REASSIGN_ROUNDS):
+        items = _reassign(pts, items, cfg)
+    items = [_extend(pts, seg, g, cfg) for seg, g in items]
+    while len(items) > 1 and _merge_one_pair(pts, items, cfg):
+        pass
+    kept = [(s, g) for s, g in items if float(np.hypot(*(s[2:4] - s[0:2]))) >= cfg.min_length_m]
+    if not kept:
+        return np.zeros((0, 4)), []
+    kept.sort(key=lambda sg: (float(sg[0][0]), float(sg[0][1])))
+    # (the extension keeps each segment's TLS line; it only moves the endpoints along it)
+    segs = np.stack([s for s, _ in kept])
+    return segs, [finite_rows[g] for _, g in kept]
+
+
+def _finite_points(
+    points_xy: npt.ArrayLike, cfg: LineFitConfig
+) -> tuple[FloatArray, IntArray] | None:
+    """The finite (M, 2) rows [m] of the input and their row indices; None when the input is
+    not (N, 2) numbers or has fewer than `min_points` finite rows."""
     try:
         arr = np.asarray(points_xy, dtype=np.float64)
     except (TypeError, ValueError):
-        return np.zeros((0, 4)), []
+        return None
     if arr.ndim != 2 or arr.shape[0] == 0 or arr.shape[1] != 2:
-        return np.zeros((0, 4)), []
+        return None
     finite_rows = np.flatnonzero(np.all(np.isfinite(arr), axis=1))
     pts = arr[finite_rows]
     if pts.shape[0] < cfg.min_points:
-        return np.zeros((0, 4)), []
+        return None
+    return pts, finite_rows
 
+
+def _fitted_groups(pts: FloatArray, cfg: LineFitConfig) -> list[tuple[FloatArray, IntArray]]:
+    """(segment, point indices) of every split cluster that fits a line well enough."""
     groups: list[IntArray] = []
     for comp in _components(pts, cfg.cluster_dist_m):
         groups.extend(_split(pts, comp, cfg, 0))
-
-    # Fit, then merge collinear neighbours until nothing changes.
     items: list[tuple[FloatArray, IntArray]] = []
     for g in groups:
         g = np.unique(g)
@@ -316,39 +343,31 @@ def fit_lines_with_support(
         seg, fit = _segment_from(pts[g])
         if fit.rms_m <= cfg.max_fit_rms_m:
             items.append((seg, g))
-    for _ in range(_REASSIGN_ROUNDS):
-        items = _reassign(pts, items, cfg)
-    items = [_extend(pts, seg, g, cfg) for seg, g in items]
-    merged = True
-    while merged and len(items) > 1:
-        merged = False
-        for i in range(len(items)):
-            for j in range(i + 1, len(items)):
-                if not _mergeable(items[i][0], items[j][0], cfg):
-                    continue
-                g = np.union1d(items[i][1], items[j][1])
-                seg, fit = _segment_from(pts[g])
-                if fit.rms_m <= cfg.max_fit_rms_m:
-                    items[i] = _extend(pts, seg, g, cfg)
-                    del items[j]
-                elif _overlap_m(items[i][0], items[j][0]) > 0:
-                    # Two overlapping near-duplicates that do not fit as one: keep the one
-                    # with more support (the other is usually a corner's stray points).
-                    worse = j if items[i][1].shape[0] >= items[j][1].shape[0] else i
-                    del items[worse]
-                else:
-                    continue
-                merged = True
-                break
-            if merged:
-                break
-    kept = [(s, g) for s, g in items if float(np.hypot(*(s[2:4] - s[0:2]))) >= cfg.min_length_m]
-    if not kept:
-        return np.zeros((0, 4)), []
-    kept.sort(key=lambda sg: (float(sg[0][0]), float(sg[0][1])))
-    # (the extension keeps each segment's TLS line; it only moves the endpoints along it)
-    segs = np.stack([s for s, _ in kept])
-    return segs, [finite_rows[g] for _, g in kept]
+    return items
+
+
+def _merge_one_pair(
+    pts: FloatArray, items: list[tuple[FloatArray, IntArray]], cfg: LineFitConfig
+) -> bool:
+    """Merge (or de-duplicate) the first mergeable pair of `items` in place; False if none."""
+    for i in range(len(items)):
+        for j in range(i + 1, len(items)):
+            if not _mergeable(items[i][0], items[j][0], cfg):
+                continue
+            g = np.union1d(items[i][1], items[j][1])
+            seg, fit = _segment_from(pts[g])
+            if fit.rms_m <= cfg.max_fit_rms_m:
+                items[i] = _extend(pts, seg, g, cfg)
+                del items[j]
+            elif _overlap_m(items[i][0], items[j][0]) > 0:
+                # Two overlapping near-duplicates that do not fit as one: keep the one
+                # with more support (the other is usually a corner's stray points).
+                worse = j if items[i][1].shape[0] >= items[j][1].shape[0] else i
+                del items[worse]
+            else:
+                continue
+            return True
+    return False
 
 
 # Tighter settings for a 1-deg laser scan (points ~0.1 m apart, ~1 cm noise).

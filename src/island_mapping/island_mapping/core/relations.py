@@ -3,7 +3,8 @@ baseline and islands scored on the same relations (pure: numpy only).
 
 Conventions: poses are rows (x [m], y [m], theta [rad]); a relative pose of b in the frame of a
 is a^-1 (+) b; "log time" is a log's time since its start [s]; "relation time" is absolute UNIX
-time [s] as in `intel.relations`; relation time = log time + `INTEL_LOG_TO_UNIX_S`.
+time [s] as in `intel.relations`; relation time = log time + an offset found from the data
+(`find_time_offset`: 976052857.338 s on the Intel log, `INTEL_LOG_TO_UNIX_S`) or given.
 
 The GMapping trajectory of `intel.gfs.log` (see ../shared/data/README.md): every `FLASER` line
 carries the corrected pose of its scan; every `ODOM` line carries "the corrected pose of the
@@ -31,8 +32,13 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 
-# Relation time = log time + this [s] (the Intel log's start in UNIX time; shared data README).
+# The Intel log's start in UNIX time (shared data README): relation time = log time + this [s].
+# Only a fact about that log to check `find_time_offset` against; nothing scores with it.
 INTEL_LOG_TO_UNIX_S = 976052857.338
+# Relation times sampled when searching the offset (spread over the relations) [-].
+OFFSET_SAMPLE = 200
+# The earliest relation times whose distances to every log line are candidate offsets [-].
+OFFSET_ANCHORS = 3
 # A relation time matches a scan when they differ by at most this [s] (scans are ~3.35 s apart,
 # relation timestamps sit within 6 ms of a log line).
 SCAN_MATCH_TOLERANCE_S = 0.010
@@ -160,9 +166,82 @@ class PoseTrack:
         return np.flatnonzero(self.is_scan).astype(np.int64)
 
 
-def gmapping_poses_at(track: PoseTrack, times_unix_s: npt.ArrayLike) -> FloatArray:
-    """The GMapping pose at absolute times: the nearest log line, a scan winning ties; (N, 3)."""
-    t = np.asarray(times_unix_s, dtype=np.float64).reshape(-1) - INTEL_LOG_TO_UNIX_S
+@dataclass(frozen=True)
+class TimeOffset:
+    """Relation time = log time + offset_s; `matched` of `times` relation times lie within the
+    tolerance of a log line with it; `source` says whether it was found or given."""
+
+    offset_s: float
+    matched: int
+    times: int
+    source: str
+
+    def as_dict(self) -> dict[str, float | int | str]:
+        return {"offset_s": round(self.offset_s, 6), "matched_times": self.matched,
+                "relation_times": self.times, "source": self.source}
+
+
+def _matches(rel_t: FloatArray, lines: FloatArray, offsets: FloatArray,
+             tolerance_s: float) -> npt.NDArray[np.int64]:
+    """Per candidate offset, how many relation times lie within tolerance of a (sorted) line."""
+    q = rel_t[None, :] - offsets[:, None]
+    hi = np.clip(np.searchsorted(lines, q), 0, lines.size - 1)
+    lo = np.clip(hi - 1, 0, lines.size - 1)
+    d = np.minimum(np.abs(lines[hi] - q), np.abs(lines[lo] - q))
+    return np.sum(d <= tolerance_s, axis=1).astype(np.int64)
+
+
+def find_time_offset(relation_times_s: npt.ArrayLike, line_times_s: npt.ArrayLike,
+                     tolerance_s: float = SCAN_MATCH_TOLERANCE_S) -> TimeOffset:
+    """The offset (relation time - log time) [s] that puts the most relation times on log
+    lines: one of the earliest relation times lies on some line, so every `first - line` is a
+    candidate, scored on a sample of relation times; then the best is refined on all of them in
+    1 ms steps (ties: the middle of the best run). 0 is a candidate too (relations in log time).
+    RelationsError when fewer than half the relation times then lie on a line (the relations
+    are not of this log)."""
+    rel_t = np.unique(np.asarray(relation_times_s, dtype=np.float64).reshape(-1))
+    lines = np.sort(np.asarray(line_times_s, dtype=np.float64).reshape(-1))
+    if rel_t.size == 0 or lines.size == 0:
+        raise RelationsError("time offset: no relation times or no log lines")
+    sample = rel_t[np.linspace(0, rel_t.size - 1, min(OFFSET_SAMPLE, rel_t.size)).astype(int)]
+    firsts = rel_t[:OFFSET_ANCHORS]  # one of them lies on a line (the first may not be logged)
+    cands = np.concatenate([[0.0], *(t - lines for t in firsts)])
+    best = np.zeros(cands.size, dtype=np.int64)
+    for k in range(0, cands.size, 2000):  # bounded temporaries
+        best[k:k + 2000] = _matches(sample, lines, cands[k:k + 2000], tolerance_s)
+    c0 = float(cands[int(np.argmax(best))])
+    step_s = 0.1 * tolerance_s  # 1 ms for the 10 ms default
+    steps: FloatArray = c0 + step_s * np.arange(-10, 11, dtype=np.float64)
+    counts = _matches(rel_t, lines, steps, tolerance_s)
+    top = np.flatnonzero(counts == counts.max())
+    offset = float(steps[int(top[len(top) // 2])])  # the middle of the best offsets
+    matched = int(counts.max())
+    if matched * 2 < rel_t.size:
+        raise RelationsError(
+            f"time offset: with the best offset {offset:.3f} s only {matched} of {rel_t.size} "
+            f"relation times lie within {tolerance_s * 1e3:g} ms of a log line: the relations "
+            "are not of this log (or give --time-offset-s)")
+    return TimeOffset(offset, matched, int(rel_t.size), "found from the log")
+
+
+def in_span(relations: Relations, t_min_s: float, t_max_s: float, offset_s: float,
+            tolerance_s: float = SCAN_MATCH_TOLERANCE_S) -> BoolArray:
+    """(N,) relations whose two times (minus offset_s) lie within the log's time span."""
+    lo, hi = t_min_s - tolerance_s, t_max_s + tolerance_s
+    t1, t2 = relations.t1_s - offset_s, relations.t2_s - offset_s
+    return (t1 >= lo) & (t1 <= hi) & (t2 >= lo) & (t2 <= hi)
+
+
+def subset(relations: Relations, keep: BoolArray) -> Relations:
+    """The relations where `keep` is True."""
+    return Relations(relations.t1_s[keep], relations.t2_s[keep], relations.rel[keep])
+
+
+def gmapping_poses_at(track: PoseTrack, times_unix_s: npt.ArrayLike,
+                      offset_s: float = 0.0) -> FloatArray:
+    """The GMapping (reference) pose at relation times (log time + offset_s): the nearest log
+    line, a scan winning ties; (N, 3)."""
+    t = np.asarray(times_unix_s, dtype=np.float64).reshape(-1) - offset_s
     scan_rows = track.scan_rows
     odom_rows = np.flatnonzero(~track.is_scan)
     i_s = scan_rows[match_times(t, track.times_s[scan_rows], math.inf)]
@@ -174,11 +253,11 @@ def gmapping_poses_at(track: PoseTrack, times_unix_s: npt.ArrayLike) -> FloatArr
 
 
 def gmapping_relation_errors(
-    track: PoseTrack, relations: Relations
+    track: PoseTrack, relations: Relations, offset_s: float = 0.0
 ) -> tuple[FloatArray, FloatArray]:
     """Per-relation (translation [m], rotation [deg]) errors of the GMapping trajectory."""
-    p1 = gmapping_poses_at(track, relations.t1_s)
-    p2 = gmapping_poses_at(track, relations.t2_s)
+    p1 = gmapping_poses_at(track, relations.t1_s, offset_s)
+    p2 = gmapping_poses_at(track, relations.t2_s, offset_s)
     return relative_pose_errors(relative_poses(p1, p2), relations.rel)
 
 
@@ -229,16 +308,18 @@ def island_poses_at(
     track: PoseTrack | None = None,
     bridge_s: float = 0.0,
     tolerance_s: float = SCAN_MATCH_TOLERANCE_S,
+    offset_s: float = 0.0,
 ) -> tuple[IntArray, FloatArray, BoolArray, IntArray]:
     """(island id (N,), island-frame pose (N, 3), has-a-pose-source (N,), source (N,)) at
-    absolute times; source is the scan index, or S + the track row of a bridged log line, or -1.
+    relation times (log time + offset_s); source is the scan index, or S + the track row of
+    a bridged log line, or -1.
 
     A time within `tolerance_s` of a scan takes that scan's fix. With a `track` and
     `bridge_s` > 0, a time that matches a log line (within tolerance) but no scan takes the fix
     of the nearer of the scans before and after it (at most `bridge_s` away) composed with the
     raw odometry between that scan and the time.
     """
-    t_log = np.asarray(times_unix_s, dtype=np.float64).reshape(-1) - INTEL_LOG_TO_UNIX_S
+    t_log = np.asarray(times_unix_s, dtype=np.float64).reshape(-1) - offset_s
     st = np.asarray(scan_times_s, dtype=np.float64).reshape(-1)
     j = match_times(t_log, st, tolerance_s)
     has = j >= 0
@@ -277,12 +358,14 @@ def score_relations(
     track: PoseTrack | None = None,
     *,
     bridge_s: float = 0.0,
+    offset_s: float = 0.0,
 ) -> RelationScore:
-    """Relative pose errors of relations whose two ends were localized in the same island."""
+    """Relative pose errors of relations whose two ends were localized in the same island
+    (relation time = log time + offset_s)."""
     i1, p1, h1, s1 = island_poses_at(run, scan_times_s, relations.t1_s, track=track,
-                                     bridge_s=bridge_s)
+                                     bridge_s=bridge_s, offset_s=offset_s)
     i2, p2, h2, s2 = island_poses_at(run, scan_times_s, relations.t2_s, track=track,
-                                     bridge_s=bridge_s)
+                                     bridge_s=bridge_s, offset_s=offset_s)
     # Both ends on the same scan (or log line): the estimate is the identity whatever the
     # localization does, so the pair tests nothing. On the Intel log such pairs are 5-15 ms
     # apart in relation time yet 0.3 m apart in truth (the log keeps 6 significant digits).
@@ -295,7 +378,7 @@ def score_relations(
         est = relative_poses(p1[covered], p2[covered])
         trans[covered], rot[covered] = relative_pose_errors(est, relations.rel[covered])
     if track is not None:
-        gt, gr = gmapping_relation_errors(track, relations)
+        gt, gr = gmapping_relation_errors(track, relations, offset_s)
         g_cov, g_all = ErrorStats.of(gt[covered], gr[covered]), ErrorStats.of(gt, gr)
     else:
         g_cov = g_all = ErrorStats.of([], [])

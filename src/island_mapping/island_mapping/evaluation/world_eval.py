@@ -283,7 +283,7 @@ def false_merges(origins: Mapping[int, Pose2D], revisits: Iterable[Revisit],
 
 def map_cycle_rank(graph: TopoGraph) -> int:
     """Independent cycles of the map as an undirected graph on distinct edges."""
-    g = nx.Graph()
+    g: nx.Graph[int] = nx.Graph()
     g.add_nodes_from(graph.island_ids())
     g.add_edges_from((e.source, e.target) for e in graph.iter_edges())
     return g.number_of_edges() - g.number_of_nodes() + nx.number_connected_components(g)

@@ -4,8 +4,15 @@ Public API, by module (import the submodule; this package imports nothing):
 
 - `carmen`: the one CARMEN log parser (`parse_carmen`, `read_carmen_records` -> `CarmenRecords`;
   the views `carmen_log` -> `CarmenLog` and `pose_track` -> core.relations.PoseTrack; FLASER
-  geometry `flaser_angles`, `sonar_like_indices`; `CarmenFormatError`);
+  FLASER format geometry `flaser_angles`, `sonar_like_indices`; `CarmenFormatError`);
+- `geometry`: scan geometry from the data (`ScanGeometry`, `GeometryOverride`,
+  `carmen_geometry`, `laserscan_geometry`, `ScanGeometryError`);
+- `times`: scan time checks (`check_scan_times`, `TimeReport`, `LogTimeError`);
 - `relations`: Kuemmerle et al.'s relation files (`parse_relations`, `read_relations`);
+- `reference`: reference trajectories (`read_reference`, `inside_islands`, `places`);
+- `report`: the one evaluation of a recorded log (`RecordedLog`, `from_carmen`, `Scoring`,
+  `evaluate_log`, `headline`);
+- `islands`: the log's beams into the builder's passive mode (`build_islands_offline`);
 - `uci_sonar`: the UCI wall-following robot's 24-sonar readings (`parse_sonar_ring`,
   `read_sonar_ring`);
 - `errors`: `LogFormatError`, the base of every reader's error.

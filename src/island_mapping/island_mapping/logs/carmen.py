@@ -2,11 +2,11 @@
 
 A CARMEN log is text with one record per line, its first word the record's type. `parse_carmen`
 turns the lines into `CarmenRecords`: a typed record for every line of a type it knows (the
-parsers in `LINE_PARSERS`: FLASER, ODOM) in file order, and the count of the other lines by
-type (NEFF, PARAM, ...). A malformed line of a known type is a `CarmenFormatError` naming the
-source and the line number. Supporting another line type (PARAM for the scan geometry, RLASER,
-ROBOTLASER1) means a record type and a parser in `LINE_PARSERS`; the views below read only the
-record types they know.
+parsers in `LINE_PARSERS`: FLASER, RLASER, ROBOTLASER1, ODOM) in file order, the `PARAM`
+lines (name -> value: the scan geometry, `logs.geometry`), and the count of the other lines by
+type (NEFF, ...). A malformed line of a known type is a `CarmenFormatError` naming the source
+and the line number. The scans of a log are the lines of one laser (`scan_kind`: FLASER if
+any, else ROBOTLASER1, else RLASER); the other lasers' lines are counted, not read.
 
 Two views of a GMapping-corrected log (../shared/data/README.md) are assembled from the records:
 
@@ -40,16 +40,18 @@ from numpy.typing import NDArray
 
 from island_mapping.core.relations import PoseTrack
 from island_mapping.logs.errors import LogFormatError
+from island_mapping.logs.geometry import GeometryOverride, ScanGeometry, carmen_geometry
+from island_mapping.logs.times import TimeReport, check_scan_times
 
 FloatArray = NDArray[np.float64]
 Pose = tuple[float, float, float]
 """(x [m], y [m], theta [rad])."""
 
 FLASER_ANGLE_MIN_RAD = -math.pi / 2
-"""The Intel log's FLASER scans: the first beam to the robot's right (-90 deg), counter-
-clockwise..."""
+"""A FLASER scan without PARAM lines: the first beam to the robot's right (-90 deg), counter-
+clockwise (`logs.geometry`)..."""
 FLASER_ANGLE_INCREMENT_RAD = math.pi / 180
-"""...at 1 deg steps (180 beams: the last at +89 deg)."""
+"""...at 1 deg steps for 180 beams (the Intel log: the last at +89 deg)."""
 
 _FLASER_TAIL = 9  # x y theta odom_x odom_y odom_theta ipc_timestamp host logger_timestamp
 _ODOM_FIELDS = 10  # ODOM x y theta tv rv accel ipc_timestamp host logger_timestamp
@@ -62,8 +64,9 @@ class CarmenFormatError(LogFormatError):
 
 @dataclass(frozen=True)
 class LaserRecord:
-    """A FLASER line: ranges [m] at beam k of FLASER geometry, the pose the log gives the scan
-    (GMapping-corrected in a corrected log) and the odometry pose fields."""
+    """A FLASER, RLASER or ROBOTLASER1 line: ranges [m], the pose the log gives the scan
+    (GMapping-corrected in a corrected log) and the odometry pose fields; a ROBOTLASER1 line
+    also its own geometry and the laser's pose on the robot (x [m], y [m], theta [rad])."""
 
     lineno: int
     ranges_m: tuple[float, ...]
@@ -72,6 +75,9 @@ class LaserRecord:
     time_s: float  # the reading's (IPC) timestamp [s]
     host: str
     logger_time_s: float  # when the logger wrote it [s]
+    kind: str = "FLASER"
+    geometry: ScanGeometry | None = None
+    mount: Pose = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -100,10 +106,26 @@ class CarmenRecords:
     source: str
     records: tuple[CarmenRecord, ...]
     skipped: dict[str, int] = field(default_factory=dict)
+    params: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def scan_kind(self) -> str:
+        """The laser whose lines are the scans: FLASER if any, else ROBOTLASER1, else RLASER."""
+        kinds = {r.kind for r in self.records if isinstance(r, LaserRecord)}
+        return next((k for k in LASER_KINDS if k in kinds), "FLASER")
+
+    def is_scan(self, rec: CarmenRecord) -> bool:
+        return isinstance(rec, LaserRecord) and rec.kind == self.scan_kind
 
     @property
     def scans(self) -> list[LaserRecord]:
-        return [r for r in self.records if isinstance(r, LaserRecord)]
+        kind = self.scan_kind
+        return [r for r in self.records if isinstance(r, LaserRecord) and r.kind == kind]
+
+    @property
+    def other_laser_lines(self) -> int:
+        """Lines of the lasers that are not the scans (e.g. RLASER beside FLASER)."""
+        return sum(1 for r in self.records if isinstance(r, LaserRecord)) - len(self.scans)
 
 
 def _floats(tokens: list[str], where: str, what: str) -> list[float]:
@@ -116,25 +138,70 @@ def _floats(tokens: list[str], where: str, what: str) -> list[float]:
     return values
 
 
-def _flaser(tok: list[str], lineno: int, where: str) -> LaserRecord:
-    if len(tok) < 2:
-        raise CarmenFormatError(f"{where}: FLASER line without beam count")
+def _count(tok: list[str], i: int, where: str, what: str) -> int:
+    if len(tok) <= i:
+        raise CarmenFormatError(f"{where}: {tok[0]} line without {what}")
     try:
-        n = int(tok[1])
+        n = int(tok[i])
     except ValueError:
-        raise CarmenFormatError(
-            f"{where}: FLASER beam count {tok[1]!r} is not an integer") from None
+        raise CarmenFormatError(f"{where}: {tok[0]} {what} {tok[i]!r} is not an integer") from None
+    if n < 0:
+        raise CarmenFormatError(f"{where}: {tok[0]} {what} {n} is negative")
+    return n
+
+
+def _ranges(vals: list[float], where: str, kind: str) -> tuple[float, ...]:
+    if vals and min(vals) < 0:
+        raise CarmenFormatError(f"{where}: {kind} has a negative range")
+    return tuple(vals)
+
+
+def _flaser(tok: list[str], lineno: int, where: str) -> LaserRecord:
+    """FLASER or RLASER: n ranges, pose, odometry pose, time, host, logger time."""
+    kind = tok[0]
+    n = _count(tok, 1, where, "beam count")
     if n <= 0 or len(tok) != 2 + n + _FLASER_TAIL:
         raise CarmenFormatError(
-            f"{where}: FLASER with {n} beams needs {2 + n + _FLASER_TAIL} fields, got {len(tok)}"
+            f"{where}: {kind} with {n} beams needs {2 + n + _FLASER_TAIL} fields, got {len(tok)}"
         )
-    vals = _floats(tok[2 : 2 + n + 6], where, "FLASER")
-    t = _floats([tok[2 + n + 6]], where, "FLASER timestamp")[0]
-    logger_t = _floats([tok[2 + n + 8]], where, "FLASER logger timestamp")[0]
-    if min(vals[:n]) < 0:
-        raise CarmenFormatError(f"{where}: FLASER has a negative range")
-    return LaserRecord(lineno, tuple(vals[:n]), (vals[n], vals[n + 1], vals[n + 2]),
-                       (vals[n + 3], vals[n + 4], vals[n + 5]), t, tok[2 + n + 7], logger_t)
+    vals = _floats(tok[2 : 2 + n + 6], where, kind)
+    t = _floats([tok[2 + n + 6]], where, f"{kind} timestamp")[0]
+    logger_t = _floats([tok[2 + n + 8]], where, f"{kind} logger timestamp")[0]
+    return LaserRecord(lineno, _ranges(vals[:n], where, kind), (vals[n], vals[n + 1], vals[n + 2]),
+                       (vals[n + 3], vals[n + 4], vals[n + 5]), t, tok[2 + n + 7], logger_t,
+                       kind=kind)
+
+
+# ROBOTLASER1 laser_type start_angle fov angular_resolution max_range accuracy remission_mode
+#   n [ranges] n_remissions [remissions] laser_x laser_y laser_theta robot_x robot_y robot_theta
+#   tv rv forward_safety side_safety turn_axis timestamp host logger_timestamp
+_RL1_HEAD = 8
+_RL1_TAIL = 14
+
+
+def _robotlaser1(tok: list[str], lineno: int, where: str) -> LaserRecord:
+    """ROBOTLASER1: the scan carries its own start angle and resolution [rad]."""
+    n = _count(tok, _RL1_HEAD, where, "beam count")
+    nrem = _count(tok, _RL1_HEAD + 1 + n, where, "remission count")
+    need = _RL1_HEAD + 2 + n + nrem + _RL1_TAIL
+    if n <= 0 or len(tok) != need:
+        raise CarmenFormatError(f"{where}: ROBOTLASER1 with {n} beams and {nrem} remissions "
+                                f"needs {need} fields, got {len(tok)}")
+    head = _floats(tok[2:5], where, "ROBOTLASER1 angles")
+    rng = _floats(tok[_RL1_HEAD + 1 : _RL1_HEAD + 1 + n], where, "ROBOTLASER1 ranges")
+    k = _RL1_HEAD + 2 + n + nrem
+    tail = _floats(tok[k : k + 11], where, "ROBOTLASER1 poses")
+    t = _floats([tok[k + 11]], where, "ROBOTLASER1 timestamp")[0]
+    logger_t = _floats([tok[k + 13]], where, "ROBOTLASER1 logger timestamp")[0]
+    start, _fov, res = head
+    if res == 0.0:
+        raise CarmenFormatError(f"{where}: ROBOTLASER1 angular resolution is 0")
+    laser, robot = np.asarray(tail[0:3]), np.asarray(tail[3:6])
+    mount = relative_poses(robot, laser)[0]
+    return LaserRecord(lineno, _ranges(rng, where, "ROBOTLASER1"), (tail[3], tail[4], tail[5]),
+                       (tail[3], tail[4], tail[5]), t, tok[k + 12], logger_t, kind="ROBOTLASER1",
+                       geometry=ScanGeometry(n, start, res, "ROBOTLASER1 fields"),
+                       mount=(float(mount[0]), float(mount[1]), float(mount[2])))
 
 
 def _odom(tok: list[str], lineno: int, where: str) -> OdomRecord:
@@ -148,8 +215,12 @@ def _odom(tok: list[str], lineno: int, where: str) -> OdomRecord:
 
 LINE_PARSERS: dict[str, Callable[[list[str], int, str], CarmenRecord]] = {
     "FLASER": _flaser,
+    "RLASER": _flaser,
+    "ROBOTLASER1": _robotlaser1,
     "ODOM": _odom,
 }
+LASER_KINDS = ("FLASER", "ROBOTLASER1", "RLASER")
+"""The laser line types, in the order a log's scans are chosen from."""
 """Parsers of the line types read, by the line's first word: (tokens, line number, "file:line")
 -> record."""
 
@@ -158,6 +229,7 @@ def parse_carmen(lines: Iterable[str], source: str = "<log>") -> CarmenRecords:
     """Parse a log's lines (see the module docstring); `source` names it in errors."""
     records: list[CarmenRecord] = []
     skipped: dict[str, int] = {}
+    params: dict[str, str] = {}
     prev_kind = ""
     last_scan: LaserRecord | None = None
     for lineno, line in enumerate(lines, start=1):
@@ -165,13 +237,16 @@ def parse_carmen(lines: Iterable[str], source: str = "<log>") -> CarmenRecords:
         if not tok or tok[0].startswith("#"):
             continue
         kind = tok[0]
+        if kind == "PARAM" and len(tok) >= 3:
+            params[tok[1]] = tok[2]
+            continue
         parser = LINE_PARSERS.get(kind)
         if parser is None:
             skipped[kind] = skipped.get(kind, 0) + 1
             prev_kind = kind
             continue
         rec = parser(tok, lineno, f"{source}:{lineno}")
-        if isinstance(rec, OdomRecord) and prev_kind == "FLASER" and last_scan is not None and (
+        if isinstance(rec, OdomRecord) and prev_kind in LASER_KINDS and last_scan is not None and (
             rec.pose == last_scan.pose
         ):
             rec = OdomRecord(rec.lineno, rec.pose, rec.tv_mps, rec.rv_radps, rec.accel_mps2,
@@ -180,7 +255,7 @@ def parse_carmen(lines: Iterable[str], source: str = "<log>") -> CarmenRecords:
             last_scan = rec
         records.append(rec)
         prev_kind = kind
-    return CarmenRecords(source, tuple(records), skipped)
+    return CarmenRecords(source, tuple(records), skipped, params)
 
 
 def read_carmen_records(path: str | os.PathLike[str]) -> CarmenRecords:
@@ -217,6 +292,14 @@ class CarmenLog:
     """(M, 3) raw odometry poses at those ODOM lines (same frame as raw_odometry)."""
     odom_scan_index: NDArray[np.int64] = field(repr=False)
     """(M,) index of the next scan after each ODOM line (S when after the last scan)."""
+    geometry: ScanGeometry | None = None
+    """Where the beams point (logs.geometry; read from the data, or given)."""
+    mount: Pose = (0.0, 0.0, 0.0)
+    """The laser's pose on the robot (ROBOTLASER1; 0 for FLASER/RLASER) [m, m, rad]."""
+    times: TimeReport | None = None
+    """The scan times' check (steps back counted)."""
+    skipped: dict[str, int] = field(default_factory=dict)
+    """Lines not read, by type (other lasers' lines as e.g. RLASER)."""
 
     @property
     def ranges(self) -> FloatArray:
@@ -228,24 +311,52 @@ class CarmenLog:
         return int(self.times_s.shape[0])
 
 
-def carmen_log(records: CarmenRecords) -> CarmenLog:
-    """The scans and the raw odometry of a GMapping-corrected log (see the module docstring)."""
+def scan_geometry(records: CarmenRecords,
+                  override: GeometryOverride | None = None) -> ScanGeometry:
+    """The geometry of the log's scans (logs.geometry): given, the scans' own (ROBOTLASER1,
+    which must agree), or from the PARAM lines and the beam count; ScanGeometryError when it
+    cannot be known."""
     scans = records.scans
     if not scans:
         raise CarmenFormatError(
-            f"{records.source}: no FLASER line found (not a CARMEN laser log?)")
+            f"{records.source}: no FLASER, ROBOTLASER1 or RLASER line (not a CARMEN laser log?)")
     n_beams = len(scans[0].ranges_m)
     for s in scans:
         if len(s.ranges_m) != n_beams:
             raise CarmenFormatError(
-                f"{records.source}:{s.lineno}: FLASER has {len(s.ranges_m)} beams, earlier "
-                f"scans had {n_beams}")
+                f"{records.source}:{s.lineno}: {s.kind} has {len(s.ranges_m)} beams, earlier "
+                f"scans had {n_beams} (mixed scan lengths)")
+    first = scans[0].geometry
+    if first is None or (override is not None and override.given):
+        return carmen_geometry(records.scan_kind, n_beams, records.params, records.source,
+                               override)
+    for s in scans:
+        g = s.geometry
+        if g is None or not (math.isclose(g.angle_min_rad, first.angle_min_rad, abs_tol=1e-6)
+                             and math.isclose(g.increment_rad, first.increment_rad,
+                                              abs_tol=1e-9)) or s.mount != scans[0].mount:
+            raise CarmenFormatError(f"{records.source}:{s.lineno}: {s.kind} geometry or laser "
+                                    "mount differs from the first scan's")
+    return first
+
+
+def carmen_log(records: CarmenRecords, override: GeometryOverride | None = None) -> CarmenLog:
+    """The scans and the raw odometry of a GMapping-corrected log (see the module docstring);
+    the scan geometry (`scan_geometry`) and times (`logs.times.check_scan_times`) checked."""
+    scans = records.scans
+    geometry = scan_geometry(records, override)
+    times = check_scan_times([s.time_s for s in scans], records.source,
+                             [s.lineno for s in scans])
     odom_lines: list[tuple[float, float, float, float]] = []  # x y theta t
     odom_scan: list[int] = []
     last_odom_before_scan: list[Pose | None] = []
     last_odom: Pose | None = None
+    skipped = dict(records.skipped)
     for rec in records.records:
         if isinstance(rec, LaserRecord):
+            if not records.is_scan(rec):
+                skipped[rec.kind] = skipped.get(rec.kind, 0) + 1
+                continue
             last_odom_before_scan.append(last_odom)
             last_odom = None
         elif not rec.echo:
@@ -274,6 +385,10 @@ def carmen_log(records: CarmenRecords) -> CarmenLog:
         odom_times_s=odom_log_t,
         odom_raw=np.asarray(odom_raw, dtype=float).reshape(-1, 3),
         odom_scan_index=scan_idx,
+        geometry=geometry,
+        mount=scans[0].mount,
+        times=times,
+        skipped=skipped,
     )
 
 
@@ -338,6 +453,8 @@ def pose_track(records: CarmenRecords) -> PoseTrack:
     last_odom: FloatArray | None = None  # pose of the latest ODOM line since that scan
     for rec in records.records:
         pose = np.asarray(rec.pose, dtype=np.float64)
+        if isinstance(rec, LaserRecord) and not records.is_scan(rec):
+            continue  # another laser's line
         if isinstance(rec, LaserRecord):
             if last_corrected is not None and last_odom is not None:
                 inc = relative_poses(last_corrected, last_odom)
@@ -371,10 +488,12 @@ def pose_track(records: CarmenRecords) -> PoseTrack:
 
 
 def flaser_angles(n_beams: int) -> FloatArray:
-    """Robot-frame angles [rad] of a FLASER scan's n_beams readings (1 deg apart from -90 deg,
-    counter-clockwise; checked on the Intel log: consecutive scans placed by their corrected
-    poses overlap to a 3 cm median only with this convention)."""
-    return FLASER_ANGLE_MIN_RAD + np.arange(n_beams, dtype=np.float64) * FLASER_ANGLE_INCREMENT_RAD
+    """Robot-frame angles [rad] of a FLASER scan's n_beams readings by the format's own rule
+    (a 180 deg scan from -90 deg, counter-clockwise: `logs.geometry.carmen_geometry` without
+    PARAM lines; 180 beams are 1 deg apart, checked on the Intel log: consecutive scans placed
+    by their corrected poses overlap to a 3 cm median only with this convention).
+    ScanGeometryError for a beam count the format does not fix."""
+    return carmen_geometry("FLASER", n_beams, {}, f"a FLASER scan of {n_beams} beams").angles()
 
 
 def sonar_like_indices(n_beams_in: int, n_keep: int) -> NDArray[np.int64]:

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 from island_msgs_py.errors import InputError
+from island_msgs_py.geometry import from_frame
 from island_msgs_py.types import Pose2D
 
 from island_mapping.core.builder.epsilon import (
@@ -34,7 +35,9 @@ from island_mapping.logs.carmen import flaser_angles, sonar_like_indices
 
 FloatArray = npt.NDArray[np.float64]
 
-SUPPORTED_BEAMS = (180, 24, 16)
+LASER_BEAMS = 180
+"""`beams` value of the laser mode: every beam of the scan, whatever its count."""
+SUPPORTED_BEAMS = (LASER_BEAMS, 24, 16)
 """Beam counts the tools accept: the full laser scan, and the sonar-like rings (24, 16)."""
 SONAR_LIKE_RANGE_M = 6.5
 """The sonar-like modes keep a Nomad-200 sonar's range [m]..."""
@@ -54,8 +57,8 @@ class OfflineConfig:
 
     beams: int = field(
         default=180,
-        metadata={"help": "beams kept from each 180-beam scan: 180 = laser, 24 or 16 = "
-                  "sonar-like mode [-]"},
+        metadata={"help": "beams kept from each scan: 180 = laser (every beam, whatever the "
+                  "scan's count), 24 or 16 = sonar-like mode [-]"},
     )
     max_range_m: float = field(
         default=10.0, metadata={"help": "readings beyond this are ignored (no return) [m]"}
@@ -89,8 +92,8 @@ class OfflineConfig:
 def sonar_like_config(beams: int, base: OfflineConfig | None = None) -> OfflineConfig:
     """The sonar-like mode: keep `beams` beams, sonar range (6.5 m) and sonar line fitting."""
     cfg = base if base is not None else OfflineConfig()
-    if beams == 180:
-        return dataclasses.replace(cfg, beams=180)
+    if beams == LASER_BEAMS:
+        return dataclasses.replace(cfg, beams=LASER_BEAMS)
     isl = cfg.islands
     islands = dataclasses.replace(
         replace_builder(isl, line_fit=LineFitConfig(),
@@ -116,16 +119,25 @@ def scan_points(ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike,
     return np.stack([r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])], axis=1)
 
 
-def beam_points(ranges_m: FloatArray, cfg: OfflineConfig
+def beam_points(ranges_m: FloatArray, cfg: OfflineConfig, angles_rad: npt.ArrayLike | None = None,
+                mount: npt.ArrayLike | None = None
                 ) -> tuple[list[FloatArray], list[FloatArray]]:
-    """Per scan of (S, B) FLASER ranges: the points that build island models (the kept beams)
-    and the points localized in them (the `localize_beams` subset, if set)."""
+    """Per scan of (S, B) ranges at `angles_rad` (B,) [rad] (default: the CARMEN FLASER
+    format's, `flaser_angles`, which refuses beam counts it cannot know): the points that build
+    island models (the kept beams) and the points localized in them (the `localize_beams`
+    subset, if set), in the robot frame (`mount`: the sensor's pose on the robot)."""
     n_total = ranges_m.shape[1]
-    angles = flaser_angles(n_total)
+    angles = (flaser_angles(n_total) if angles_rad is None
+              else np.asarray(angles_rad, dtype=np.float64).reshape(-1))
+    if angles.shape != (n_total,):
+        raise OfflineError(f"scan: {n_total} ranges per scan for {angles.size} beam angles")
+    at = None if mount is None else np.asarray(mount, dtype=np.float64).reshape(3)
 
     def points(n_keep: int, max_range_m: float) -> list[FloatArray]:
-        keep = sonar_like_indices(n_total, min(n_keep, n_total))
-        return [scan_points(r[keep], angles[keep], max_range_m) for r in ranges_m]
+        keep = (np.arange(n_total) if n_keep == LASER_BEAMS
+                else sonar_like_indices(n_total, min(n_keep, n_total)))
+        pts = [scan_points(r[keep], angles[keep], max_range_m) for r in ranges_m]
+        return pts if at is None or not np.any(at) else [from_frame(p, at) for p in pts]
 
     build = points(cfg.beams, cfg.max_range_m)
     if cfg.localize_beams and cfg.localize_beams != cfg.beams:
@@ -143,10 +155,12 @@ def build_islands_offline(
     fitter: FitFn | None = None,
     evaluator: EvaluateFn | None = None,
     progress: Callable[[int, int, int], None] | None = None,
+    angles_rad: npt.ArrayLike | None = None,
+    mount: npt.ArrayLike | None = None,
 ) -> IslandRun:
-    """Islands over a log's scans: ranges_m (S, B) [m] of FLASER geometry, raw_poses (S, 3) the
-    raw odometry at each scan, times_s (S,) [s], fed scan by scan to the passive builder with
-    the covariance the odometry error model propagates along the raw odometry.
+    """Islands over a log's scans: ranges_m (S, B) [m] at `angles_rad` (`beam_points`),
+    raw_poses (S, 3) the raw odometry at each scan, times_s (S,) [s], fed scan by scan to the
+    passive builder with the covariance the odometry error model propagates along the raw odometry.
     `progress(scan, scans, islands)` is called after every scan when given."""
     cfg = config if config is not None else OfflineConfig()
     rng = np.asarray(ranges_m, dtype=np.float64)
@@ -158,7 +172,7 @@ def build_islands_offline(
         raise OfflineError(
             f"build_islands_offline: {rng.shape} ranges, {raw.shape} poses, {t.shape[0]} times"
         )
-    build, fix = beam_points(rng, cfg)
+    build, fix = beam_points(rng, cfg, angles_rad, mount)
     builder = PassiveBuilder(cfg.islands, localizer=localizer, fit=fitter, evaluate=evaluator)
     covs = propagate_covariances(raw, cfg.odometry)
     n = raw.shape[0]

@@ -1,17 +1,23 @@
 """island_builder_node: builds islands of reliability while the hall follower explores (eq. 3).
 
-Subscribes  /odom                    nav_msgs/Odometry (pose + covariance: epsilon); each scan
+Subscribes  odom                     nav_msgs/Odometry (pose + covariance: epsilon); each scan
                                      is decided with the odometry of its own stamp
-            /sonar/scan              sensor_msgs/LaserScan
-            /hall_follower/strategy  std_msgs/String (latched), the executed strategy
-            /ground_truth            nav_msgs/Odometry, only to stamp islands' origin_truth
-Publishes   /cmd_vel                 geometry_msgs/TwistStamped (the scan's stamp), one per scan
+            sonar/scan               sensor_msgs/LaserScan
+            hall_follower/progress   std_msgs/String, the executed strategy so far
+            ground_truth             nav_msgs/Odometry, only to stamp islands' origin_truth
+Publishes   cmd_vel                  geometry_msgs/TwistStamped (the scan's stamp), one per scan
                                      while the builder drives
-            /island_builder/events   std_msgs/String, one JSON object per builder event
-Calls       /hall_follower/enable (SetBool), /hall_follower/reset (Trigger),
-            /topo_graph/add (rcl_interfaces/SetParameters: `island` and `edge` JSON strings)
+            island_builder/events    std_msgs/String, one JSON object per builder event
+Calls       hall_follower/enable (SetBool), hall_follower/reset (Trigger),
+            topo_graph/add (rcl_interfaces/SetParameters: `island` and `edge` JSON strings)
 All service calls are asynchronous; the executor is never blocked. The decisions are in
 island_mapping.core.builder; localization in the islands is island_localizer_node.
+
+Names are relative to the node's namespace. Start-up: with `wait_for_services` (the default) the
+builder subscribes only once the hall follower's services and topo_graph/add are up, so whatever
+order the nodes start in, it maps from where the robot stands when they all are (the follower
+holds the robot still until the builder claims it) and no island is sent to a server that is not
+there yet. Every `builder.*` parameter is read-only (fixed for a run).
 """
 
 from __future__ import annotations
@@ -19,6 +25,7 @@ from __future__ import annotations
 import json
 import sys
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 from geometry_msgs.msg import TwistStamped
@@ -30,12 +37,20 @@ from island_msgs_py.conversions import (
     scan_to_arrays,
     time_to_ns,
 )
-from island_msgs_py.qos import LATCHED, STREAM_QOS
-from island_msgs_py.ros_params import BadMessageLog, clock_ns, declare_config, run_node
+from island_msgs_py.qos import STREAM_QOS
+from island_msgs_py.ros_params import (
+    BadMessageLog,
+    clock_ns,
+    declare_config,
+    log_ready,
+    run_node,
+)
 from island_msgs_py.types import ControlStrategy, IslandTypeError
 from nav_msgs.msg import Odometry
 from rcl_interfaces.srv import SetParameters
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
@@ -46,26 +61,71 @@ from island_msgs_py import conversions as cv
 
 NODE_NAME = "island_builder_node"
 ODOM_BUFFER = 200  # stamps kept for pairing scans with odometry (4 s at 50 Hz)
+BASE_FRAME = "base_link"  # the robot frame /cmd_vel is in (after frame_prefix)
+SERVICE_POLL_S = 0.1  # how often (wall clock) to look for the services mapping waits for
+PROGRESS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+"""The follower's record: only the newest matters (`set_strategy` overwrites)."""
+
+
+@dataclass(frozen=True)
+class IslandBuilderNodeConfig:
+    """Parameters of island_builder_node beside the builder's own (`builder.*`)."""
+
+    wait_for_services: bool = field(
+        default=True,
+        metadata={"help": "subscribe (start mapping) only once hall_follower/enable, "
+                  "hall_follower/reset and topo_graph/add are up; false = at once (replays, "
+                  "which answer no follower calls) [bool]"},
+    )
+    frame_prefix: str = field(
+        default="", metadata={"help": "prepended to the cmd_vel frame base_link, e.g. 'robot1/'"}
+    )
 
 
 class IslandBuilderNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
+        self.node_cfg = declare_config(self, "", IslandBuilderNodeConfig())
         self.cfg = declare_config(self, "builder", core.BuilderConfig())
         self.builder = core.IslandBuilder(self.cfg)
         self._warn = BadMessageLog(self)
-        self.follower_enabled = True  # confirmed state of the hall follower
+        # Confirmed state of the hall follower; None until the builder has claimed it.
+        self.follower_enabled: bool | None = None
         self._enable_pending: bool | None = None
+        self._base_frame = self.node_cfg.frame_prefix + BASE_FRAME
         self.sync = core.StampSync(self.builder, ODOM_BUFFER)
-        self.cmd_pub = self.create_publisher(TwistStamped, "/cmd_vel", STREAM_QOS)
-        self.event_pub = self.create_publisher(String, "/island_builder/events", STREAM_QOS)
-        self.create_subscription(Odometry, "/odom", self._on_odom, STREAM_QOS)
-        self.create_subscription(Odometry, "/ground_truth", self._on_truth, STREAM_QOS)
-        self.create_subscription(LaserScan, "/sonar/scan", self._on_scan, STREAM_QOS)
-        self.create_subscription(String, "/hall_follower/strategy", self._on_strategy, LATCHED)
-        self.enable_cli = self.create_client(SetBool, "/hall_follower/enable")
-        self.reset_cli = self.create_client(Trigger, "/hall_follower/reset")
-        self.add_cli = self.create_client(SetParameters, "/topo_graph/add")
+        self.cmd_pub = self.create_publisher(TwistStamped, "cmd_vel", STREAM_QOS)
+        self.event_pub = self.create_publisher(String, "island_builder/events", STREAM_QOS)
+        self.enable_cli = self.create_client(SetBool, "hall_follower/enable")
+        self.reset_cli = self.create_client(Trigger, "hall_follower/reset")
+        self.add_cli = self.create_client(SetParameters, "topo_graph/add")
+        self.mapping = False
+        """Subscribed to the robot's topics (once the services are up, see wait_for_services)."""
+        if self.node_cfg.wait_for_services:
+            self.get_logger().info(
+                f"waiting for {self.enable_cli.service_name}, {self.reset_cli.service_name} "
+                f"and {self.add_cli.service_name} before mapping")
+            self._wait_timer = self.create_timer(SERVICE_POLL_S, self._start_when_ready,
+                                                 clock=Clock(clock_type=ClockType.STEADY_TIME))
+        else:
+            self._start_mapping()
+
+    # --- start-up: map only once the follower and the graph server are there ------------------
+    def _start_when_ready(self) -> None:
+        clients = (self.enable_cli, self.reset_cli, self.add_cli)
+        if self.mapping or not all(c.service_is_ready() for c in clients):
+            return
+        self._wait_timer.cancel()
+        self._start_mapping()
+
+    def _start_mapping(self) -> None:
+        self.mapping = True
+        self.create_subscription(Odometry, "odom", self._on_odom, STREAM_QOS)
+        self.create_subscription(Odometry, "ground_truth", self._on_truth, STREAM_QOS)
+        self.create_subscription(LaserScan, "sonar/scan", self._on_scan, STREAM_QOS)
+        self.create_subscription(String, "hall_follower/progress", self._on_strategy,
+                                 PROGRESS_QOS)
+        log_ready(self)
 
     @property
     def bad_msg_count(self) -> int:
@@ -93,7 +153,7 @@ class IslandBuilderNode(Node):
         try:
             self.builder.set_strategy(ControlStrategy.parse(msg.data))
         except IslandTypeError as exc:
-            self._warn("/hall_follower/strategy", exc)
+            self._warn("hall_follower/progress", exc)
 
     def _on_scan(self, msg: LaserScan) -> None:
         try:
@@ -111,10 +171,12 @@ class IslandBuilderNode(Node):
                 self._handle_event(e)
             if cmd.mode is CommandMode.DRIVE:
                 self._set_follower(False)
-                self.cmd_pub.publish(command_to_twist_stamped(cmd.v_mps, cmd.w_radps, t_ns))
+                self.cmd_pub.publish(command_to_twist_stamped(cmd.v_mps, cmd.w_radps, t_ns,
+                                                              self._base_frame))
             else:
                 if not self.follower_enabled:  # until it confirms, keep the lockstep fed
-                    self.cmd_pub.publish(command_to_twist_stamped(0.0, 0.0, t_ns))
+                    self.cmd_pub.publish(command_to_twist_stamped(0.0, 0.0, t_ns,
+                                                                  self._base_frame))
                 if self._enable_pending is None and not self.follower_enabled:
                     self._set_follower(True)
 
@@ -138,7 +200,15 @@ class IslandBuilderNode(Node):
             # At a new or revisited island's origin: the follower's record restarts, it resumes.
             self._enable_pending = True
             fut = self.reset_cli.call_async(Trigger.Request())
-            fut.add_done_callback(lambda _f: self._send_enable(True))
+            fut.add_done_callback(self._on_reset)
+
+    def _on_reset(self, fut: Any) -> None:
+        """The follower's record restarted (it refuses while following: say so); resume it."""
+        res = fut.result()
+        if res is None or not res.success:
+            why = res.message if res is not None else "no answer"
+            self.get_logger().warn(f"{self.reset_cli.service_name} failed: {why}")
+        self._send_enable(True)
 
     def _on_added(self, fut: Any) -> None:
         res = fut.result()

@@ -1,13 +1,16 @@
 """island_localizer_node: while the robot is near an island, localizes it in the island's frame.
 
-Subscribes  /island_builder/events  std_msgs/String (JSON): `island_accepted` events give the
+Subscribes  island_builder/events   std_msgs/String (JSON): `island_accepted` events give the
                                     island (its line model) and its origin in the odometry frame
-            /odom                   nav_msgs/Odometry
-            /sonar/scan             sensor_msgs/LaserScan
-Publishes   /island_pose            geometry_msgs/PoseWithCovarianceStamped, frame_id = the
+            odom                    nav_msgs/Odometry
+            sonar/scan              sensor_msgs/LaserScan
+Publishes   island_pose             geometry_msgs/PoseWithCovarianceStamped, frame_id = the
                                     island's frame (`island_<id>`), stamped with the scan time
 Each scan is paired with the odometry of the same stamp (island_msgs_py.stamps). The logic is
-island_mapping.core.tracker.IslandTracker.
+island_mapping.core.tracker.IslandTracker. Names are relative to the node's namespace; island
+frames are the map's (shared by every robot), so they carry no prefix. The events are not
+latched: start the localizer before the builder, or it tracks only the islands accepted after
+it started. Every `tracker.*` parameter is read-only.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from island_msgs_py.inputs import load_json
 from island_msgs_py.json_io import GraphFormatError
 from island_msgs_py.limits import MAX_EVENT_JSON_BYTES
 from island_msgs_py.qos import STREAM_QOS
-from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
+from island_msgs_py.ros_params import BadMessageLog, declare_config, log_ready, run_node
 from island_msgs_py.scan_inputs import subscribe_paired_scans
 from island_msgs_py.stamps import Paired
 from island_msgs_py.types import FloatArray, IslandTypeError
@@ -43,9 +46,10 @@ class IslandLocalizerNode(Node):
         self.tracker = IslandTracker(declare_config(self, "tracker", TrackerConfig()))
         self._warn = BadMessageLog(self)
         self.published = 0
-        self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "/island_pose", 10)
-        self.create_subscription(String, "/island_builder/events", self._on_event, STREAM_QOS)
+        self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "island_pose", 10)
+        self.create_subscription(String, "island_builder/events", self._on_event, STREAM_QOS)
         subscribe_paired_scans(self, ODOM_BUFFER, self._handle, self._warn)
+        log_ready(self)
 
     @property
     def bad_msg_count(self) -> int:
@@ -60,7 +64,7 @@ class IslandLocalizerNode(Node):
             island = json_io.island_from_dict(d.get("island"), "event.island")
             origin = json_io.pose_from_dict(d.get("anchor_odom"), "event.anchor_odom")
         except (ValueError, GraphFormatError, IslandTypeError) as exc:
-            self._warn("/island_builder/events", exc)
+            self._warn("island_builder/events", exc)
             return
         self.tracker.add_island(island, origin)
 

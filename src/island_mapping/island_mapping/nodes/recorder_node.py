@@ -4,52 +4,28 @@
         -p recorder.topics:="['/sonar/scan', '/odom']" -p recorder.compression:=zstd
 
 Parameters: `output_dir` (default `run_<UTC date-time>`, must not exist) and `recorder.<field>`
-for every field of island_mapping.bag.recorder.RecorderConfig (topics: empty = all).
-Ctrl-C or SIGTERM closes the bag properly (summary + metadata.yaml); after SIGKILL use
-`islands bag recover`.
+for every field of island_mapping.bag.recorder.RecorderConfig (topics: empty = all; absolute
+names, as the recorder sees the whole graph whatever its own namespace). All are read-only: the
+bag is opened with them. Ctrl-C or SIGTERM closes the bag properly (summary + metadata.yaml);
+after SIGKILL use `islands bag recover`.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 import time
 from collections.abc import Sequence
 from typing import Any
 
-from island_msgs_py.ros_params import run_node
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+from island_msgs_py.ros_params import declare_config, log_ready, run_node
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 
 from island_mapping.bag.errors import BagError
 from island_mapping.bag.recorder import RecorderConfig, RunRecorder
 
 NODE_NAME = "recorder"
 PREFIX = "recorder"
-
-
-def declare_recorder_config(node: Node) -> RecorderConfig:
-    """Declare `recorder.<field>` for RecorderConfig (string arrays declared by type)."""
-    default = RecorderConfig()
-    values: dict[str, Any] = {}
-    for f in dataclasses.fields(RecorderConfig):
-        name = f"{PREFIX}.{f.name}"
-        current = getattr(default, f.name)
-        help_text = str(f.metadata.get("help", ""))
-        if isinstance(current, tuple):
-            # An empty list default would be declared as a byte array: declare the type.
-            desc = ParameterDescriptor(
-                description=help_text, type=ParameterType.PARAMETER_STRING_ARRAY
-            )
-            got = node.declare_parameter(name, Parameter.Type.STRING_ARRAY, desc).value
-            values[f.name] = tuple(got) if got is not None else current
-        else:
-            got = node.declare_parameter(
-                name, current, ParameterDescriptor(description=help_text)
-            ).value
-            values[f.name] = float(got) if isinstance(current, float) else got
-    return RecorderConfig(**values)
 
 
 class RecorderNode(Node):
@@ -62,15 +38,17 @@ class RecorderNode(Node):
         out = self.declare_parameter(
             "output_dir",
             f"run_{stamp}",
-            ParameterDescriptor(description="bag directory to create (must not exist)"),
+            ParameterDescriptor(description="bag directory to create (must not exist)",
+                                read_only=True),
         ).value
-        self.config = declare_recorder_config(self)
+        self.config = declare_config(self, PREFIX, RecorderConfig())
         self.recorder = RunRecorder(self, out, config=self.config)
         self._closed = False
         self.get_logger().info(
             f"recording {'all topics' if not self.config.topics else self.config.topics} "
             f"to {self.recorder.path}"
         )
+        log_ready(self)
 
     def close(self) -> None:
         """Close the bag (summary + metadata.yaml); idempotent."""

@@ -1,16 +1,20 @@
 """topo_graph_server_node: holds the map M = {V, E}, persists it, serves it on standard types.
 
 Topics (latched: reliable, transient local, depth 1; republished after every change):
-  /topo_graph/markers  visualization_msgs/MarkerArray  (display layout, see conversions.py)
-  /topo_graph/json     std_msgs/String                 (the versioned graph JSON document)
+  topo_graph/markers  visualization_msgs/MarkerArray  (display layout, see conversions.py),
+                      stamped with the node's clock (sim time with use_sim_time)
+  topo_graph/json     std_msgs/String                 (the versioned graph JSON document)
 Services:
-  /topo_graph/add   rcl_interfaces/srv/SetParameters  each Parameter named `island`, `edge` or
-                    `exit` with a JSON string value; add or replace (an exit: set its state);
-                    one result per item; at most `max_items_per_request` items
-  /topo_graph/get   std_srvs/srv/Trigger             message = the graph JSON
-  /topo_graph/plan  nav_msgs/srv/GetPlan             start/goal header.frame_id = island frames
-                    (`island_<id>`); plan = the island origins in route order (empty if none)
-  /topo_graph/save  std_srvs/srv/Trigger             writes graph.json/.geojson/.graphml
+  topo_graph/add   rcl_interfaces/srv/SetParameters  each Parameter named `island`, `edge` or
+                   `exit` with a JSON string value; add or replace (an exit: set its state);
+                   one result per item; at most `max_items_per_request` items
+  topo_graph/get   std_srvs/srv/Trigger             message = the graph JSON
+  topo_graph/plan  nav_msgs/srv/GetPlan             start/goal header.frame_id = island frames
+                   (`island_<id>`); plan = the island origins in route order (empty if none)
+  topo_graph/save  std_srvs/srv/Trigger             writes graph.json/.geojson/.graphml
+Names are relative to the node's namespace (a fleet shares one server: remap the robots' clients
+to it). storage_path is read-only; the other parameters take effect when set at run time (the
+markers are republished when their frame settings change).
 See docs/graph_server.md for why these types and how persistence works.
 """
 
@@ -25,15 +29,13 @@ from typing import Any
 
 from island_msgs_py.json_io import GraphFormatError
 from island_msgs_py.qos import LATCHED
-from island_msgs_py.ros_params import declare_config, run_node
+from island_msgs_py.ros_params import declare_config, log_ready, run_node
 from island_msgs_py.types import ExitUpdate, Island, IslandTypeError
 from nav_msgs.msg import Path as PathMsg
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
 from rcl_interfaces.srv import SetParameters
-from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.parameter import Parameter as RclpyParameter
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
@@ -53,13 +55,10 @@ MEMORY_EXPORT_DIR = "topo_graph_export"  # save target when in memory and no out
 
 
 class TopoGraphServerNode(Node):
-    def __init__(
-        self,
-        context: Context | None = None,
-        parameter_overrides: list[RclpyParameter] | None = None,
-    ) -> None:
-        super().__init__(NODE_NAME, context=context, parameter_overrides=parameter_overrides)
-        self.config: GraphServerConfig = declare_config(self, "", GraphServerConfig())
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self.config: GraphServerConfig = declare_config(self, "", GraphServerConfig(),
+                                                        on_change=self._reconfigure)
         storage = self.config.storage_path.strip()
         self.store: GraphStore | None = None
         if storage:
@@ -68,17 +67,27 @@ class TopoGraphServerNode(Node):
         else:
             self.graph = TopoGraph()
         self.rejected = 0  # count of rejected add items and failed requests
-        self.markers_pub = self.create_publisher(MarkerArray, "/topo_graph/markers", LATCHED)
-        self.json_pub = self.create_publisher(String, "/topo_graph/json", LATCHED)
-        self.create_service(SetParameters, "/topo_graph/add", self._on_add)
-        self.create_service(Trigger, "/topo_graph/get", self._on_get)
-        self.create_service(GetPlan, "/topo_graph/plan", self._on_plan)
-        self.create_service(Trigger, "/topo_graph/save", self._on_save)
+        self.markers_pub = self.create_publisher(MarkerArray, "topo_graph/markers", LATCHED)
+        self.json_pub = self.create_publisher(String, "topo_graph/json", LATCHED)
+        self.create_service(SetParameters, "topo_graph/add", self._on_add)
+        self.create_service(Trigger, "topo_graph/get", self._on_get)
+        self.create_service(GetPlan, "topo_graph/plan", self._on_plan)
+        self.create_service(Trigger, "topo_graph/save", self._on_save)
         where = storage or "memory only"
         self.get_logger().info(
             f"graph server: {len(self.graph)} islands, {self.graph.num_edges} edges ({where})"
         )
         self.publish()
+        log_ready(self)
+
+    def _reconfigure(self, config: GraphServerConfig) -> None:
+        """A live parameter was set (storage_path is read-only): used from the next request on;
+        new marker frames are published at once."""
+        redraw = (config.display_frame, config.markers_in_island_frames) != (
+            self.config.display_frame, self.config.markers_in_island_frames)
+        self.config = config
+        if redraw:
+            self.publish()
 
     # --- publishing ----------------------------------------------------------------------------
 

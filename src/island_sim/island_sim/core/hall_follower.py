@@ -52,6 +52,8 @@ _STALL_MIN_SPEED_MPS = 0.1
 _STALL_PROGRESS_FRACTION = 0.2
 # Largest disagreement [rad] between the wall-based and the held hallway direction still trusted.
 _AXIS_TRUST_RAD = math.radians(25.0)
+# Parameter range of the config's distances, speeds, gains and times (all must be >= 0).
+_NON_NEGATIVE = (0.0, math.inf)
 
 
 class HallFollowerError(InputError):
@@ -114,97 +116,133 @@ def parse_script(text: str) -> tuple[TurnChoice, ...]:
 class HallFollowerConfig:
     """Parameters of the hall follower (distances from the robot centre)."""
 
-    cruise_speed_mps: float = field(default=0.5, metadata={"help": "speed along halls [m/s]"})
+    cruise_speed_mps: float = field(
+        default=0.5,
+        metadata={"help": "speed along halls [m/s]",
+                  "live": True, "range": _NON_NEGATIVE},
+    )
     max_turn_rate_radps: float = field(
-        default=1.0, metadata={"help": "largest commanded turn rate [rad/s]"}
+        default=1.0,
+        metadata={"help": "largest commanded turn rate [rad/s]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     robot_radius_m: float = field(
-        default=0.25, metadata={"help": "radius of the robot's body, for clearance checks [m]"}
+        default=0.25,
+        metadata={"help": "radius of the robot's body, for clearance checks [m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     stop_distance_m: float = field(
         default=0.75,
         metadata={"help": "an obstacle ahead this close (from the robot centre) stops the "
-                  "robot and forces a decision [m]"},
+                  "robot and forces a decision [m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     slow_distance_m: float = field(
-        default=2.0, metadata={"help": "the robot slows down linearly below this front range [m]"}
+        default=2.0,
+        metadata={"help": "the robot slows down linearly below this front range [m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     path_margin_m: float = field(
         default=0.2,
         metadata={"help": "echoes ahead within robot_radius_m + this of the robot's path "
-                  "count as obstacles in the way [m]"},
+                  "count as obstacles in the way [m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     side_half_angle_deg: float = field(
         default=35.0,
         metadata={"help": "echoes within this of a side's perpendicular bearing are fitted as "
-                  "that side's wall [deg]"},
+                  "that side's wall [deg]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     fit_tolerance_m: float = field(
         default=0.08,
         metadata={"help": "largest residual of a side wall fit still taken as one straight "
-                  "wall; otherwise only the perpendicular distance is used [m]"},
+                  "wall; otherwise only the perpendicular distance is used [m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     open_side_m: float = field(
         default=2.5,
-        metadata={"help": "a side whose perpendicular range exceeds this is open [m]"},
+        metadata={"help": "a side whose perpendicular range exceeds this is open [m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     rearm_distance_m: float = field(
         default=1.0,
-        metadata={"help": "travel with a side closed before an opening on it counts again [m]"},
+        metadata={"help": "travel with a side closed before an opening on it counts again [m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     confirm_distance_m: float = field(
         default=0.1,
-        metadata={"help": "travel with a side open before the opening counts (debounce) [m]"},
+        metadata={"help": "travel with a side open before the opening counts (debounce) [m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     default_hall_width_m: float = field(
         default=2.0,
-        metadata={"help": "hallway width assumed before one has been measured [m]"},
+        metadata={"help": "hallway width assumed before one has been measured [m]",
+                  "range": _NON_NEGATIVE},
     )
     side_lag_m: float = field(
         default=0.2,
         metadata={"help": "travel past a corner before the side transducer's cone clears it; "
-                  "subtracted from the advance to a side hallway's middle [m]"},
+                  "subtracted from the advance to a side hallway's middle [m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     min_advance_m: float = field(
-        default=0.4, metadata={"help": "shortest drive from an opening to the turn [m]"}
+        default=0.4,
+        metadata={"help": "shortest drive from an opening to the turn [m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     enter_distance_m: float = field(
-        default=1.2, metadata={"help": "drive after a turn before following again [m]"}
+        default=1.2,
+        metadata={"help": "drive after a turn before following again [m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     straight_free_m: float = field(
         default=3.0,
         metadata={"help": "at an opening, straight is a choice when the way ahead is free this "
-                  "far [m]"},
+                  "far [m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     k_lateral: float = field(
         default=1.2,
-        metadata={"help": "approach angle per metre off the hallway middle [rad/m]"},
+        metadata={"help": "approach angle per metre off the hallway middle [rad/m]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     max_approach_deg: float = field(
-        default=20.0, metadata={"help": "largest angle to the hallway when re-centring [deg]"}
+        default=20.0,
+        metadata={"help": "largest angle to the hallway when re-centring [deg]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     k_heading: float = field(
-        default=2.0, metadata={"help": "turn rate per radian of heading error [1/s]"}
+        default=2.0,
+        metadata={"help": "turn rate per radian of heading error [1/s]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     turn_tolerance_deg: float = field(
-        default=1.5, metadata={"help": "a rotation in place ends within this of its target [deg]"}
+        default=1.5,
+        metadata={"help": "a rotation in place ends within this of its target [deg]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     stall_time_s: float = field(
         default=1.0,
         metadata={"help": "driving forward while odometry shows (almost) no progress for this "
-                  "long counts as blocked (a wall the sonar cannot see) [s]"},
+                  "long counts as blocked (a wall the sonar cannot see) [s]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     min_turn_rate_radps: float = field(
-        default=0.15, metadata={"help": "smallest turn rate while rotating in place [rad/s]"}
+        default=0.15,
+        metadata={"help": "smallest turn rate while rotating in place [rad/s]",
+                  "live": True, "range": _NON_NEGATIVE},
     )
     policy: TurnPolicy = field(
         default=TurnPolicy.LEFT_HAND,
-        metadata={"help": "turn policy: left_hand, right_hand, scripted, random"},
+        metadata={"help": "turn policy: left_hand, right_hand, scripted, random",
+                  "live": True},
     )
     script: str = field(
         default="",
         metadata={"help": "scripted policy: comma-separated turns (left, straight, right, back) "
-                  "used one per decision"},
+                  "used one per decision",
+                  "live": True},
     )
 
     def __post_init__(self) -> None:
@@ -333,6 +371,16 @@ class HallFollower:
         if not enabled and self._enabled:
             self._close_rotation()
         self._enabled = bool(enabled)
+
+    def reconfigure(self, config: HallFollowerConfig) -> None:
+        """Follow with `config` from the next update on, keeping the state and the record (a
+        changed script starts from its first turn; `default_hall_width_m` only matters before
+        the first hallway is measured)."""
+        if config.policy is TurnPolicy.RANDOM and self._rng is None:
+            raise HallFollowerError("HallFollower: the random policy needs a numpy Generator")
+        if config.script != self.config.script:
+            self._script = list(config.script_choices)
+        self.config = config
 
     def reset_strategy(self) -> None:
         """Forget the executed strategy; the record restarts at the current pose."""

@@ -44,21 +44,26 @@ def _check_finite(cls: str, values: dict[str, float]) -> None:
 class RobotConfig:
     """Body and motion limits of the simulated robot (a Nomad-200-like disk)."""
 
-    radius_m: float = field(default=0.25, metadata={"help": "radius of the robot's disk [m]"})
+    radius_m: float = field(default=0.25, metadata={"help": "radius of the robot's disk [m]",
+                                                    "range": (0.0, math.inf)})
     wheelbase_m: float = field(
-        default=0.5, metadata={"help": "true distance between the two drive wheels [m]"}
+        default=0.5, metadata={"help": "true distance between the two drive wheels [m]",
+                               "range": (0.0, math.inf)}
     )
     max_linear_speed_mps: float = field(
-        default=0.6, metadata={"help": "largest forward/backward speed [m/s]"}
+        default=0.6, metadata={"help": "largest forward/backward speed [m/s]",
+                               "range": (0.0, math.inf)}
     )
     max_angular_speed_radps: float = field(
-        default=1.2, metadata={"help": "largest turn rate [rad/s]"}
+        default=1.2, metadata={"help": "largest turn rate [rad/s]", "range": (0.0, math.inf)}
     )
     max_linear_accel_mps2: float = field(
-        default=1.0, metadata={"help": "largest change of linear speed [m/s^2]"}
+        default=1.0, metadata={"help": "largest change of linear speed [m/s^2]",
+                               "range": (0.0, math.inf)}
     )
     max_angular_accel_radps2: float = field(
-        default=4.0, metadata={"help": "largest change of turn rate [rad/s^2]"}
+        default=4.0, metadata={"help": "largest change of turn rate [rad/s^2]",
+                               "range": (0.0, math.inf)}
     )
 
     def __post_init__(self) -> None:
@@ -93,26 +98,30 @@ class OdometryConfig:
     wheel_radius_ratio_error: float = field(
         default=0.0005,
         metadata={"help": "relative difference of right vs left wheel radius (E_d - 1); the "
-                  "odometric path of a straight drive curves by about -e / wheelbase [1/m] [-]"},
+                  "odometric path of a straight drive curves by about -e / wheelbase [1/m] [-]",
+                  "range": (-1.0, 1.0)},
     )
     wheelbase_error: float = field(
         default=0.005,
         metadata={"help": "relative error of the true vs nominal wheelbase (E_b - 1); scales "
-                  "every odometric rotation by about 1 + e [-]"},
+                  "every odometric rotation by about 1 + e [-]", "range": (-1.0, math.inf)},
     )
     var_dist_m2_per_m: float = field(
-        default=1e-4, metadata={"help": "variance of travelled distance per metre [m^2/m]"}
+        default=1e-4, metadata={"help": "variance of travelled distance per metre [m^2/m]",
+                                "range": (0.0, math.inf)}
     )
     var_heading_rad2_per_m: float = field(
-        default=1e-4, metadata={"help": "heading variance per metre travelled [rad^2/m]"}
+        default=1e-4, metadata={"help": "heading variance per metre travelled [rad^2/m]",
+                                "range": (0.0, math.inf)}
     )
     var_heading_rad2_per_rad: float = field(
-        default=5e-4, metadata={"help": "heading variance per radian turned [rad^2/rad]"}
+        default=5e-4, metadata={"help": "heading variance per radian turned [rad^2/rad]",
+                                "range": (0.0, math.inf)}
     )
     dist_heading_correlation: float = field(
         default=0.0,
         metadata={"help": "correlation of the distance and heading errors of one step, in "
-                  "[-1, 1] (the cross term of the per-step covariance) [-]"},
+                  "[-1, 1] (the cross term of the per-step covariance) [-]", "range": (-1.0, 1.0)},
     )
 
     def __post_init__(self) -> None:
@@ -150,21 +159,25 @@ class SimLoopConfig:
     """How the simulator steps time (used by the odometry node and in-process runners)."""
 
     physics_rate_hz: float = field(
-        default=50.0, metadata={"help": "physics/odometry steps per simulated second [Hz]"}
+        default=50.0,
+        metadata={"help": "physics/odometry steps per simulated second [Hz]",
+                  "range": (0.0, math.inf)},
     )
     sensor_rate_hz: float = field(
         default=10.0,
         metadata={"help": "sonar scans (and controller periods) per simulated second; must "
-                  "divide physics_rate_hz [Hz]"},
+                  "divide physics_rate_hz [Hz]", "range": (0.0, math.inf)},
     )
     publish_rate_hz: float = field(
         default=50.0,
         metadata={"help": "rate of /odom, /ground_truth and /clock; must divide "
-                  "physics_rate_hz and be a multiple of sensor_rate_hz [Hz]"},
+                  "physics_rate_hz and be a multiple of sensor_rate_hz [Hz]",
+                  "range": (0.0, math.inf)},
     )
     real_time_factor: float = field(
         default=1.0,
-        metadata={"help": "simulated seconds per wall second; 0 = as fast as possible [-]"},
+        metadata={"help": "simulated seconds per wall second; 0 = as fast as possible [-]",
+                  "live": True, "range": (0.0, math.inf)},
     )
     lockstep: bool = field(
         default=False,
@@ -173,18 +186,21 @@ class SimLoopConfig:
     )
     lockstep_timeout_s: float = field(
         default=2.0,
-        metadata={"help": "wall-clock wait for a lockstep /cmd_vel before stepping anyway [s]"},
+        metadata={"help": "wall-clock wait for a lockstep /cmd_vel before stepping anyway [s]",
+                  "live": True, "range": (0.0, math.inf)},
     )
     own_clock: bool = field(
         default=True, metadata={"help": "publish rosgraph_msgs/Clock on /clock [bool]"}
     )
     cmd_timeout_s: float = field(
         default=0.5,
-        metadata={"help": "stop the robot when no /cmd_vel arrived for this simulated time [s]"},
+        metadata={"help": "stop the robot when no /cmd_vel arrived for this simulated time [s]",
+                  "live": True, "range": (0.0, math.inf)},
     )
     stop_after_s: float = field(
         default=0.0,
-        metadata={"help": "stop stepping at this simulated time; 0 = run forever [s]"},
+        metadata={"help": "stop stepping at this simulated time; 0 = run forever [s]",
+                  "range": (0.0, math.inf)},
     )
 
     def __post_init__(self) -> None:

@@ -37,7 +37,8 @@ class SonarConfig:
     """Parameters of the simulated sonar ring (defaults: a Nomad 200 with 16 Polaroid sensors)."""
 
     num_transducers: int = field(
-        default=16, metadata={"help": "number of transducers on the ring, evenly spaced [-]"}
+        default=16, metadata={"help": "number of transducers on the ring, evenly spaced [-]",
+                              "range": (1, math.inf)}
     )
     first_angle_deg: float = field(
         default=0.0,
@@ -45,29 +46,36 @@ class SonarConfig:
                   "the others follow counter-clockwise every 360/N deg"},
     )
     ring_radius_m: float = field(
-        default=0.225, metadata={"help": "distance of the transducers from the robot centre [m]"}
+        default=0.225, metadata={"help": "distance of the transducers from the robot centre [m]",
+                                 "range": (0.0, math.inf)}
     )
     beam_width_deg: float = field(
-        default=25.0, metadata={"help": "full opening angle of each transducer's cone [deg]"}
+        default=25.0, metadata={"help": "full opening angle of each transducer's cone [deg]",
+                                "range": (0.0, 180.0)}
     )
     rays_per_beam: int = field(
-        default=5, metadata={"help": "rays sampling each cone, spread evenly over its width [-]"}
+        default=5, metadata={"help": "rays sampling each cone, spread evenly over its width [-]",
+                             "range": (1, math.inf)}
     )
     range_min_m: float = field(
         default=0.15,
-        metadata={"help": "closest echo a transducer reports, from the transducer [m]"},
+        metadata={"help": "closest echo a transducer reports, from the transducer [m]",
+                  "range": (0.0, math.inf)},
     )
     range_max_m: float = field(
         default=6.5,
-        metadata={"help": "farthest echo a transducer reports, from the transducer [m]"},
+        metadata={"help": "farthest echo a transducer reports, from the transducer [m]",
+                  "range": (0.0, math.inf)},
     )
     reflect_deg: float = field(
         default=30.0,
         metadata={"help": "largest incidence angle (ray vs wall normal) that still returns an "
-                  "echo; beyond it the ray is reflected away and lost [deg]"},
+                  "echo; beyond it the ray is reflected away and lost [deg]",
+                  "range": (0.0, 90.0)},
     )
     noise_std_m: float = field(
-        default=0.01, metadata={"help": "standard deviation of Gaussian range noise [m]"}
+        default=0.01, metadata={"help": "standard deviation of Gaussian range noise [m]",
+                                "range": (0.0, math.inf)}
     )
     ideal: bool = field(
         default=False,

@@ -1,12 +1,17 @@
 """odometry_node: the simulated robot. It owns sim time and steps physics at a fixed dt.
 
-Subscribes  /cmd_vel        geometry_msgs/TwistStamped, stamped with the sensor stamp it answers
+Subscribes  cmd_vel         geometry_msgs/TwistStamped, stamped with the sensor stamp it answers
                             (as Jazzy's diff_drive_controller; NaN/inf ignored with a throttled
                             warning, counted; a command older than one already applied is stale
                             and ignored; stamp 0 = "now", for hand-typed commands)
-Publishes   /odom           nav_msgs/Odometry  odom -> base_link, drifting pose + its covariance
-            /ground_truth   nav_msgs/Odometry  map -> base_link, the true pose (evaluation only)
+Publishes   odom            nav_msgs/Odometry  odom -> base_link, drifting pose + its covariance
+            ground_truth    nav_msgs/Odometry  map -> base_link, the true pose (evaluation only)
             /clock          rosgraph_msgs/Clock when sim.own_clock
+Names are relative (`--ros-args -r __ns:=/robot1` moves the robot's topics) but for /clock,
+which is where every sim-time node's time source listens. `frame_prefix` (e.g. `robot1/`)
+prefixes the robot's frames (odom_frame, base_frame), not the shared world frame map_frame.
+`sim.real_time_factor`, `sim.lockstep_timeout_s` and `sim.cmd_timeout_s` take effect when set at
+run time; every other parameter is read-only.
 
 Pacing: `sim.real_time_factor` simulated seconds per wall second, or 0 = as fast as possible;
 the wall clock only decides WHEN to step, every step is one fixed `1 / sim.physics_rate_hz`.
@@ -39,7 +44,7 @@ from island_msgs_py.conversions import (
     twist_stamped_to_command,
 )
 from island_msgs_py.qos import STREAM_QOS
-from island_msgs_py.ros_params import BadMessageLog, declare_config, run_node
+from island_msgs_py.ros_params import BadMessageLog, declare_config, log_ready, run_node
 from island_msgs_py.types import Pose2D
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
@@ -83,6 +88,11 @@ class OdometryNodeConfig:
     odom_frame: str = field(default="odom", metadata={"help": "frame of /odom"})
     map_frame: str = field(default="map", metadata={"help": "frame of /ground_truth"})
     base_frame: str = field(default="base_link", metadata={"help": "robot body frame"})
+    frame_prefix: str = field(
+        default="",
+        metadata={"help": "prepended to the robot's frames (odom_frame, base_frame), e.g. "
+                  "'robot1/'; map_frame is the shared world's and stays as it is"},
+    )
     sim: SimLoopConfig = field(default_factory=SimLoopConfig)
     robot: RobotConfig = field(default_factory=RobotConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
@@ -106,7 +116,7 @@ def parse_start_pose(text: str) -> Pose2D | None:
 class OdometryNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        self.cfg = declare_config(self, "", OdometryNodeConfig())
+        self.cfg = declare_config(self, "", OdometryNodeConfig(), on_change=self._reconfigure)
         sim = self.cfg.sim
         self.world = load_world(self.cfg.world)
         start = parse_start_pose(self.cfg.start_pose) or self.world.start_pose
@@ -126,20 +136,34 @@ class OdometryNode(Node):
             RealTimePacer(sim.real_time_factor, sim.dt_ns, _MAX_STEPS_PER_CALLBACK)
             if sim.real_time_factor > 0 else None
         )
-        self.odom_pub = self.create_publisher(Odometry, "/odom", STREAM_QOS)
-        self.truth_pub = self.create_publisher(Odometry, "/ground_truth", STREAM_QOS)
+        self.odom_pub = self.create_publisher(Odometry, "odom", STREAM_QOS)
+        self.truth_pub = self.create_publisher(Odometry, "ground_truth", STREAM_QOS)
         self.clock_pub = (
             self.create_publisher(Clock, "/clock", STREAM_QOS) if sim.own_clock else None
         )
-        self.create_subscription(TwistStamped, "/cmd_vel", self._on_cmd, STREAM_QOS)
-        period = _PACING_PERIOD_S if sim.real_time_factor > 0 else 0.0
-        self.timer = self.create_timer(period, self._on_timer)
+        self.create_subscription(TwistStamped, "cmd_vel", self._on_cmd, STREAM_QOS)
+        self.timer = self.create_timer(self._timer_period_s(), self._on_timer)
         self.create_timer(0.05, self._check_lockstep_timeout)
         self.get_logger().info(
             f"world {self.world.name!r} ({self.world.segments.shape[0]} walls), start {start}, "
             f"{sim.physics_rate_hz:g} Hz physics, rtf {sim.real_time_factor:g}, "
             f"lockstep {sim.lockstep}"
         )
+        log_ready(self)
+
+    # --- parameters set at run time ------------------------------------------------------------
+    def _timer_period_s(self) -> float:
+        return _PACING_PERIOD_S if self.cfg.sim.real_time_factor > 0 else 0.0
+
+    def _reconfigure(self, cfg: OdometryNodeConfig) -> None:
+        """Apply the live parameters (the others are read-only): pacing, lockstep timeout (read
+        where it is used) and the command timeout."""
+        self.cfg = cfg
+        rtf = cfg.sim.real_time_factor
+        self._pacer = (RealTimePacer(rtf, cfg.sim.dt_ns, _MAX_STEPS_PER_CALLBACK)
+                       if rtf > 0 else None)
+        self.timer.timer_period_ns = round(self._timer_period_s() * 1e9)
+        self.gate.cmd_timeout_ns = round(cfg.sim.cmd_timeout_s * 1e9)
 
     # --- inputs --------------------------------------------------------------------------------
     def _on_cmd(self, msg: TwistStamped) -> None:
@@ -183,7 +207,7 @@ class OdometryNode(Node):
     def _ready_to_start(self) -> bool:
         """Lockstep starts once the controller and the sensor are connected (or after timeout)."""
         connected = (
-            self.count_publishers("/cmd_vel") > 0
+            self.count_publishers("cmd_vel") > 0
             and self.truth_pub.get_subscription_count() > 0
             and self.odom_pub.get_subscription_count() > 0
         )
@@ -248,11 +272,11 @@ class OdometryNode(Node):
             self.clock_pub.publish(self._clock_msg)
         vel = self.robot.velocity
         c = self.cfg
+        base, odom = c.frame_prefix + c.base_frame, c.frame_prefix + c.odom_frame
         self.truth_pub.publish(fill_odometry(self._truth_msg, self.robot.true_pose, None, t_ns,
-                                             c.map_frame, c.base_frame, vel))
+                                             c.map_frame, base, vel))
         self.odom_pub.publish(fill_odometry(self._odom_msg, self.robot.odom_pose,
-                                            self.robot.odom_covariance, t_ns, c.odom_frame,
-                                            c.base_frame, vel))
+                                            self.robot.odom_covariance, t_ns, odom, base, vel))
 
 
 def main(args: Sequence[str] | None = None) -> int:

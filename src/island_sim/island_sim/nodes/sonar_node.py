@@ -1,11 +1,13 @@
 """sonar_node: the simulated sonar ring, driven by the ground-truth stamps (not a wall timer).
 
-Subscribes  /ground_truth      nav_msgs/Odometry (the true pose, from odometry_node)
-Publishes   /sonar/scan        sensor_msgs/LaserScan, once per sensor period: when a ground-truth
+Subscribes  ground_truth       nav_msgs/Odometry (the true pose, from odometry_node)
+Publishes   sonar/scan         sensor_msgs/LaserScan, once per sensor period: when a ground-truth
                                stamp crosses a period boundary, the scan is computed at that pose
                                and carries that stamp (so scan k is the pose at t_k)
-            /sonar/range_<i>   sensor_msgs/Range per transducer when `publish_ranges`
+            sonar/range_<i>    sensor_msgs/Range per transducer when `publish_ranges`
                                (ULTRASOUND, field_of_view = beam width, frame `sonar_<i>`)
+Names are relative to the node's namespace; `frame_prefix` (e.g. `robot1/`) prefixes frame_id
+and the `sonar_<i>` frames. Every parameter is read-only (the ring is fixed for a run).
 """
 
 from __future__ import annotations
@@ -24,7 +26,13 @@ from island_msgs_py.conversions import (
     odometry_to_pose,
 )
 from island_msgs_py.qos import STREAM_QOS
-from island_msgs_py.ros_params import BadMessageLog, clock_ns, declare_config, run_node
+from island_msgs_py.ros_params import (
+    BadMessageLog,
+    clock_ns,
+    declare_config,
+    log_ready,
+    run_node,
+)
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan, Range
@@ -58,6 +66,10 @@ class SonarNodeConfig:
         metadata={"help": "also publish one sensor_msgs/Range per transducer [bool]"},
     )
     frame_id: str = field(default="base_link", metadata={"help": "frame of the LaserScan"})
+    frame_prefix: str = field(
+        default="",
+        metadata={"help": "prepended to frame_id and the sonar_<i> frames, e.g. 'robot1/'"},
+    )
     sonar: SonarConfig = field(default_factory=SonarConfig)
 
 
@@ -75,14 +87,15 @@ class SonarNode(Node):
         self.scans_published = 0
         self._warn = BadMessageLog(self)
         self._last_period: int | None = None
-        self.scan_pub = self.create_publisher(LaserScan, "/sonar/scan", STREAM_QOS)
+        self.scan_pub = self.create_publisher(LaserScan, "sonar/scan", STREAM_QOS)
         self.range_pubs = []
         if self.cfg.publish_ranges:
             self.range_pubs = [
-                self.create_publisher(Range, f"/sonar/range_{i}", STREAM_QOS)
+                self.create_publisher(Range, f"sonar/range_{i}", STREAM_QOS)
                 for i in range(self.model.angles_rad.shape[0])
             ]
-        self.create_subscription(Odometry, "/ground_truth", self._on_truth, STREAM_QOS)
+        self.create_subscription(Odometry, "ground_truth", self._on_truth, STREAM_QOS)
+        log_ready(self)
 
     @property
     def bad_msg_count(self) -> int:
@@ -103,12 +116,13 @@ class SonarNode(Node):
         ranges = self.model.scan(self.world, pose, self.rng)
         # transducer i is scan index i; bearings increase from first_angle_deg (CCW)
         scan = arrays_to_scan(ranges, self.model.angles_rad, self.limits_m, t_ns,
-                              self.cfg.frame_id, self.period_ns * 1e-9)
+                              self.cfg.frame_prefix + self.cfg.frame_id, self.period_ns * 1e-9)
         self.scan_pub.publish(scan)
         self.scans_published += 1
         fov = math.radians(self.cfg.sonar.beam_width_deg)
         for i, pub in enumerate(self.range_pubs):
-            pub.publish(range_msg(float(ranges[i]), fov, self.limits_m, t_ns, f"sonar_{i}"))
+            pub.publish(range_msg(float(ranges[i]), fov, self.limits_m, t_ns,
+                                  f"{self.cfg.frame_prefix}sonar_{i}"))
 
 
 def main(args: Sequence[str] | None = None) -> int:

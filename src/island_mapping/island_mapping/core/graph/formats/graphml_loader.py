@@ -23,7 +23,7 @@ from island_msgs_py import json_io
 _ID_RE = re.compile(rf"^[0-9]{{1,{MAX_JSON_INT_DIGITS}}}$")
 
 
-def _read(path: str | os.PathLike[str]) -> nx.DiGraph:
+def _read(path: str | os.PathLike[str]) -> nx.Graph[str]:
     try:
         size = Path(path).stat().st_size
     except OSError as exc:
@@ -31,7 +31,7 @@ def _read(path: str | os.PathLike[str]) -> nx.DiGraph:
     if size > MAX_GRAPH_FILE_BYTES:
         raise GraphFormatError(str(path), f"{size} bytes (the limit is {MAX_GRAPH_FILE_BYTES})")
     try:
-        g: nx.DiGraph = nx.read_graphml(os.fspath(path), node_type=str)
+        g: nx.Graph[str] = nx.read_graphml(os.fspath(path), node_type=str)
     except (OSError, ValueError, nx.NetworkXError) as exc:
         raise GraphFormatError(str(path), f"cannot read GraphML: {exc}") from exc
     except Exception as exc:  # xml.etree ParseError and friends

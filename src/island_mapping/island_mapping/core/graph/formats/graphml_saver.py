@@ -18,9 +18,9 @@ GRAPHML_FORMAT = "islands-graph-graphml"
 NO_EXIT = -1  # GraphML has no null: an edge's unknown source/target exit
 
 
-def graph_to_graphml(graph: GraphView) -> nx.DiGraph:
+def graph_to_graphml(graph: GraphView) -> nx.DiGraph[int]:
     """A DiGraph with only GraphML-representable attributes (strings, doubles, ints)."""
-    g = nx.DiGraph(format=GRAPHML_FORMAT, version=json_io.FORMAT_VERSION)
+    g: nx.DiGraph[int] = nx.DiGraph(format=GRAPHML_FORMAT, version=json_io.FORMAT_VERSION)
     for island in graph.islands():
         g.add_node(
             island.id,
