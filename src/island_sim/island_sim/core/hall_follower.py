@@ -27,6 +27,7 @@ from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.hall_perception import (
     HallPerceptionConfig,
     Perception,
@@ -55,7 +56,7 @@ _AXIS_TRUST_RAD = math.radians(25.0)
 _NON_NEGATIVE = (0.0, math.inf)
 
 
-class HallFollowerError(ValueError):
+class HallFollowerError(InputError):
     """Bad configuration or bad `update` input; the message names the field."""
 
 
