@@ -207,6 +207,7 @@ def _damage_cases() -> list[tuple[str, str]]:
         ("foreign_sqlite", "not an islands graph store"),
         ("newer_schema", "written by a newer version"),
         ("orphan_wal", "database file is missing but its write-ahead log"),
+        ("deleted_database", r"database file is missing \(the store had made one\)"),
     ]
 
 
@@ -231,6 +232,8 @@ def _damage(path: Path, how: str) -> None:
         _sql(path, "CREATE TABLE notes (text TEXT)")
     elif how == "newer_schema":
         _sql(path, "PRAGMA user_version = 99")
+    elif how == "deleted_database":  # not an empty directory to start afresh in
+        db.unlink()
     elif how == "orphan_wal":
         shutil.copy(db, path / f"{DB}-wal")
         db.unlink()

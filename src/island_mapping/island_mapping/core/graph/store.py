@@ -44,6 +44,9 @@ from island_mapping.core.graph.legacy_store import (
 from island_mapping.core.graph.model import PutMode, TopoGraph
 
 LOCK = ".lock"
+# Written into the lock file once the store's database exists: a directory whose lock file says
+# so but holds no database lost it (deleted), and is not a place to start an empty store.
+DATABASE_MADE = b"graph.sqlite3 made\n"
 LEGACY_ASIDE = "pre-sqlite"  # where the files of a migrated old-format store are kept
 IMPORTING_SUFFIX = ".importing"  # a database being written whole; renamed when complete
 RECOVERY = ("the store was left unchanged; recovery: `islands graph salvage DIR --out NEW_DIR` "
@@ -64,6 +67,7 @@ class DirState(StrEnum):
     DATABASE = "database"
     LEGACY = "legacy"  # snapshot.json / changes.jsonl, no database yet
     ORPHAN_WAL = "orphan_wal"  # a write-ahead log without its database
+    LOST_DATABASE = "lost_database"  # the lock file says a database was made; it is gone
     FOREIGN = "foreign"  # something else: not a store
 
 
@@ -80,6 +84,9 @@ def classify(directory: Path) -> DirState:
     if is_legacy_store(directory):
         return DirState.LEGACY
     if names <= {LOCK, sch.DATABASE + IMPORTING_SUFFIX}:
+        lock = directory / LOCK
+        if LOCK in names and lock.is_file() and lock.read_bytes()[:64] == DATABASE_MADE:
+            return DirState.LOST_DATABASE
         return DirState.NEW
     return DirState.FOREIGN
 
@@ -216,6 +223,9 @@ class GraphStore:
         if state is DirState.ORPHAN_WAL:
             return _damaged(self.database, "the database file is missing but its write-ahead "
                                            "log is there")
+        if state is DirState.LOST_DATABASE:
+            return _damaged(self.database, "the database file is missing (the store had made "
+                                           "one)")
         return GraphStoreError(str(d), f"not a graph store (no {sch.DATABASE}); a store is "
                                        "only created in a missing or empty directory")
 
@@ -239,6 +249,7 @@ class GraphStore:
         if state is DirState.LEGACY:
             self._migrate()
         self._conn = self._open_database(read_only=False)
+        self._mark_database_made()
         self._finish_migration()
 
     def _lock(self) -> None:
@@ -250,6 +261,12 @@ class GraphStore:
             self._lock_fd = None
             raise GraphError(
                 f"graph store {self.directory} is in use by another process") from None
+
+    def _mark_database_made(self) -> None:
+        assert self._lock_fd is not None
+        if os.pread(self._lock_fd, len(DATABASE_MADE), 0) != DATABASE_MADE:
+            os.pwrite(self._lock_fd, DATABASE_MADE, 0)
+            os.fsync(self._lock_fd)
 
     def _open_database(self, read_only: bool) -> sqlite3.Connection:
         path = self.database
