@@ -1,0 +1,228 @@
+"""Exploration by the map without ROS: the closed loop the nodes run under `--policy exits`.
+
+Simulator-backed (numpy + island_sim cores, no ROS) and deterministic for a seed. Per sensor
+period: a scan at the true pose; the builder decides (managed mode: `core.builder.hooks`); the
+map (a TopoGraph, as the graph server would hold it) takes the builder's items; the explorer
+(`core.explore.Explorer`) decides; exactly one controller answers the scan (the explorer, the
+builder, or the hall follower); then the explorer's requests reach the builder and the map, as
+the nodes' messages would after the scan. Every arrival's localization is judged against the
+simulator's truth (false arrivals: trusted, yet more than 0.5 m or 10 deg off).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from island_msgs_py.types import ExitUpdate, FloatArray, Island, Pose2D, wrap_angle
+from island_sim.core.hall_follower import HallFollower
+from island_sim.core.robot import SimRobot
+from island_sim.core.sonar import SonarModel
+
+from island_mapping.core.builder import (
+    BuilderConfig,
+    BuilderEvent,
+    CommandMode,
+    EventKind,
+    IslandBuilder,
+    event_to_dict,
+)
+from island_mapping.core.builder.hooks import graph_items
+from island_mapping.core.explore import (
+    Abort,
+    Docked,
+    Explorer,
+    ExplorerConfig,
+    Handover,
+    explorer_hooks,
+)
+from island_mapping.core.graph import TopoGraph
+from island_mapping.core.route import Fix, NavigateConfig, Sense
+from island_mapping.evaluation.navigate import SimSetup
+
+FALSE_ARRIVAL_M = 0.5
+FALSE_ARRIVAL_DEG = 10.0
+"""A trusted arrival this far off the truth (position or heading) is a false arrival."""
+
+
+@dataclass
+class ArrivalCheck:
+    """One arrival's localization against the truth: island, trusted, error [m, deg]."""
+
+    island_id: int
+    t_s: float
+    trusted: bool
+    error_m: float
+    error_deg: float
+
+    @property
+    def false(self) -> bool:
+        return self.trusted and (self.error_m > FALSE_ARRIVAL_M
+                                 or self.error_deg > FALSE_ARRIVAL_DEG)
+
+
+@dataclass
+class ExitsRun:
+    """What an exploration by exits produced: the map (with exit states), every builder event
+    as summary.json keeps it (with the true pose), the paths, wall contacts, arrivals judged
+    against the truth, the explorer's counts, whether it ended by itself (and when) and the
+    scans no controller answered."""
+
+    graph: TopoGraph
+    events: list[dict[str, Any]]
+    truth_path: FloatArray
+    odom_path: FloatArray
+    collisions: int
+    arrivals: list[ArrivalCheck]
+    explorer_counts: dict[str, int]
+    done: bool
+    sim_seconds: float
+    unanswered_scans: int = 0
+    contacts: list[tuple[float, float, float, str]] = field(default_factory=list)
+    revisit_refusals: dict[str, int] = field(default_factory=dict)
+    origins_odom: dict[int, Pose2D] = field(default_factory=dict)
+
+    @property
+    def false_arrivals(self) -> int:
+        return sum(a.false for a in self.arrivals)
+
+
+def apply_items(graph: TopoGraph, event: BuilderEvent) -> None:
+    """Apply a builder event's items to the map, as the graph server does."""
+    for item in graph_items(event):
+        if isinstance(item, ExitUpdate):
+            graph.apply_exit_update(item)
+        elif isinstance(item, Island):
+            graph.put_island(item)
+        else:
+            graph.put_edge(item)
+
+
+class _Judge:
+    """Every arrival's fix against the true pose in the island's frame."""
+
+    def __init__(self, graph: TopoGraph, robot: SimRobot) -> None:
+        self.graph, self.robot = graph, robot
+        self.checks: list[ArrivalCheck] = []
+
+    def __call__(self, fix: Fix) -> None:
+        island = self.graph.get_island(fix.island_id) if fix.island_id in self.graph else None
+        if island is None or island.origin_truth is None:
+            return
+        truth = self.robot.true_pose.relative_to(island.origin_truth)
+        err_m = math.hypot(fix.pose.x - truth.x, fix.pose.y - truth.y)
+        err_deg = abs(math.degrees(wrap_angle(fix.pose.theta - truth.theta)))
+        self.checks.append(ArrivalCheck(fix.island_id, self.robot.time_s, fix.trusted, err_m,
+                                        err_deg))
+
+
+def explore_by_exits(
+    setup: SimSetup,
+    sim_s: float,
+    builder_cfg: BuilderConfig | None = None,
+    explorer_cfg: ExplorerConfig | None = None,
+    rng: np.random.Generator | None = None,
+    start: Pose2D | None = None,
+    nav: NavigateConfig | None = None,
+    trace: list[dict[str, Any]] | None = None,
+) -> ExitsRun:
+    """Explore `setup.world` by its exits until the explorer is done or `sim_s` simulated
+    seconds have passed (module docstring)."""
+    gen = rng if rng is not None else np.random.default_rng(0)
+    world = setup.world
+    robot = SimRobot(world, start or world.start_pose, gen, setup.robot, setup.odometry)
+    sonar = SonarModel(setup.sonar)
+    follower = HallFollower(setup.follower, np.random.default_rng(int(gen.integers(2**31))))
+    ecfg = explorer_cfg if explorer_cfg is not None else ExplorerConfig()
+    graph = TopoGraph()
+    judge = _Judge(graph, robot)
+    explorer = Explorer(ecfg, nav, setup.follower.perception,
+                        setup.follower.default_hall_width_m, on_fix=judge)
+    builder = IslandBuilder(builder_cfg, hooks=explorer_hooks(ecfg, lambda: graph))
+    steps = max(1, round(50.0 / 10.0))
+    dt = 1.0 / 50.0
+    events: list[dict[str, Any]] = []
+    truth, odom = [], []
+    unanswered = 0
+    contacts: list[tuple[float, float, float, str]] = []
+    builder.on_odometry(0.0, robot.odom_pose, robot.odom_covariance)
+    builder.on_ground_truth(robot.true_pose)
+    blocked = False
+    for _ in range(int(sim_s * 10.0)):
+        t = robot.time_s
+        ranges = sonar.scan(world, robot.true_pose, gen)
+        builder.set_strategy(follower.strategy())
+        builder.on_scan(t, ranges, sonar.angles_rad)
+        cmd = builder.command(t)
+        for e in cmd.events:
+            apply_items(graph, e)
+            d = event_to_dict(e)
+            tp = robot.true_pose
+            d["truth_pose"] = {"x": tp.x, "y": tp.y, "theta": tp.theta}
+            events.append(d)
+        explorer.on_events(cmd.events)
+        explorer.on_strategy(follower.strategy())
+        explorer.on_graph(graph)
+        sense = Sense(t, robot.odom_pose, ranges, sonar.angles_rad, robot.velocity[1], blocked)
+        ecmd = explorer.step(sense)
+        if trace is not None:
+            _trace(trace, explorer, robot, ecmd.requests)
+        follower.set_enabled(not ecmd.drive and cmd.mode is CommandMode.FOLLOW)
+        v, w = follower.update(ranges, sonar.angles_rad, robot.odom_pose, t)
+        if ecmd.drive:
+            v, w = ecmd.v_mps, ecmd.w_radps
+        elif cmd.mode is CommandMode.DRIVE:
+            v, w = cmd.v_mps, cmd.w_radps
+        elif cmd.mode is CommandMode.IDLE:
+            unanswered += 1
+        who = ("explorer" if ecmd.drive else "builder" if cmd.mode is CommandMode.DRIVE
+               else "follower")
+        _apply_requests(ecmd.requests, builder, follower, graph)
+        truth.append(robot.true_pose.as_array())
+        odom.append(robot.odom_pose.as_array())
+        blocked = False
+        before = robot.collisions
+        for _ in range(steps):
+            blocked |= robot.step(v, w, dt).blocked
+            builder.on_odometry(robot.time_s, robot.odom_pose, robot.odom_covariance)
+            builder.on_ground_truth(robot.true_pose)
+        if robot.collisions > before:
+            contacts.append((round(t, 1), round(robot.true_pose.x, 2), round(robot.true_pose.y, 2),
+                             who))
+        if explorer.done:
+            break
+    return ExitsRun(graph, events, np.array(truth).reshape(-1, 3), np.array(odom).reshape(-1, 3),
+                    robot.collisions, judge.checks, dict(explorer.counts), explorer.done,
+                    robot.time_s, unanswered, contacts, dict(builder.revisit_refusals),
+                    dict(builder.island_origins_odom))
+
+
+def _trace(trace: list[dict[str, Any]], explorer: Explorer, robot: SimRobot,
+           requests: tuple[object, ...]) -> None:
+    """Keep the explorer's status whenever it changes, and every request, with the truth."""
+    st = explorer.status.to_dict()
+    tp = robot.true_pose
+    if not trace or {k: trace[-1].get(k) for k in st} != st or requests:
+        trace.append({"t": round(robot.time_s, 1), **st, "truth": [round(tp.x, 2),
+                      round(tp.y, 2), round(math.degrees(tp.theta))],
+                      "requests": [repr(r) for r in requests]})
+
+
+def _apply_requests(requests: tuple[object, ...], builder: IslandBuilder, follower: HallFollower,
+                    graph: TopoGraph) -> None:
+    """The explorer's requests, as the builder and graph server nodes would take them."""
+    for r in requests:
+        if isinstance(r, Docked):
+            builder.on_docked(r.island_id, r.origin_odom)
+        elif isinstance(r, Handover):
+            follower.reset_strategy()
+            builder.handover(r.island_id, r.exit_index, r.prefix)
+        elif isinstance(r, Abort):
+            builder.abort()
+        elif isinstance(r, ExitUpdate):
+            graph.apply_exit_update(r)
+
+
+_ = EventKind
