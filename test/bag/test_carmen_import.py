@@ -21,7 +21,8 @@ def intel_log(shared_data: Path) -> Path:
 
 def test_read_carmen_counts_and_raw_odometry_rule(intel_log: Path) -> None:
     from island_mapping.bag.carmen import read_carmen
-    from island_msgs_py.geometry import relative_poses, wrap_angles
+    from island_msgs_py.geometry import relative_poses as relative_pose
+    from island_msgs_py.geometry import wrap_angles as wrap_angle
 
     log = read_carmen(intel_log)
     assert log.n_scans == INTEL_SCANS
@@ -43,7 +44,7 @@ def test_read_carmen_counts_and_raw_odometry_rule(intel_log: Path) -> None:
         tok = line.split()
         if tok[0] == "FLASER":
             pose = np.array([float(v) for v in tok[182:185]])
-            increments.append(relative_poses(corrected_prev, np.asarray(last_odom))[0])
+            increments.append(relative_pose(corrected_prev, np.asarray(last_odom))[0])
             corrected_prev, last_odom = pose, None
             scans.append(pose)
         elif tok[0] == "ODOM" and prev_kind != "FLASER":
@@ -51,15 +52,15 @@ def test_read_carmen_counts_and_raw_odometry_rule(intel_log: Path) -> None:
         prev_kind = tok[0]
         if len(scans) == 6:
             break
-    got = relative_poses(log.raw_odometry[:5], log.raw_odometry[1:6])
+    got = relative_pose(log.raw_odometry[:5], log.raw_odometry[1:6])
     np.testing.assert_allclose(got, np.asarray(increments[1:6]), atol=1e-9)
     np.testing.assert_allclose(log.raw_odometry[0], increments[0], atol=1e-12)
     # README: per step the raw increment differs from the corrected one by a median 5 cm / 2.6 deg.
-    d = relative_poses(log.raw_odometry[:-1], log.raw_odometry[1:]) - relative_poses(
+    d = relative_pose(log.raw_odometry[:-1], log.raw_odometry[1:]) - relative_pose(
         log.corrected[:-1], log.corrected[1:]
     )
     assert np.median(np.hypot(d[:, 0], d[:, 1])) == pytest.approx(0.05, abs=0.01)
-    assert math.degrees(np.median(np.abs(wrap_angles(d[:, 2])))) == pytest.approx(2.6, abs=0.3)
+    assert math.degrees(np.median(np.abs(wrap_angle(d[:, 2])))) == pytest.approx(2.6, abs=0.3)
     # The raw odometry drifts away from the corrected path (it is not the corrected pose).
     drift = np.hypot(*(log.raw_odometry[-1, :2] - log.corrected[-1, :2]))
     assert drift > 1.0

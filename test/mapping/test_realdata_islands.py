@@ -1,5 +1,6 @@
-"""Offline islands on real data: scoring by hand, eq. 3 decisions, and the first scans of the
-Intel Research Lab log end to end (laser and sonar-like mode)."""
+"""Offline islands on real data (the builder's passive mode, fed by logs.islands): scoring by
+hand, eq. 3 decisions, and the first scans of the Intel Research Lab log end to end (laser and
+sonar-like mode)."""
 
 from __future__ import annotations
 
@@ -9,19 +10,26 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from island_mapping.core import realdata as rd
+from island_mapping.core import relations as rd
+from island_mapping.core.builder import passive
+from island_mapping.core.builder.epsilon import propagate_covariances
+from island_mapping.core.builder.places import PlaceSearch
+from island_mapping.core.lines import fit_lines
+from island_mapping.logs import carmen
+from island_mapping.logs import islands as offline
+from island_mapping.logs.relations import read_relations
 from island_msgs_py.geometry import compose_poses, from_frame, relative_poses, wrap_angles
-from island_msgs_py.types import Island, LineModel, ModelType
+from island_msgs_py.types import Island, LineModel, ModelType, Pose2D
 
 N_SCANS = 50  # ~3 min of the Intel log; keeps the end-to-end test to a few seconds
 
 
-def _run(scan_island: list[int], scan_pose: list[list[float]]) -> rd.IslandRun:
+def _run(scan_island: list[int], scan_pose: list[list[float]]) -> passive.IslandRun:
     model = LineModel(np.array([[0.0, -1.0, 0.0, 1.0]]))
-    isl = rd.RealIsland(Island(0, model, ModelType.LINE, 1.0, 0.0), 0, np.zeros(3))
-    return rd.IslandRun(
+    isl = passive.PassiveIsland(Island(0, model, ModelType.LINE, 1.0, 0.0), 0, np.zeros(3))
+    return passive.IslandRun(
         (isl, isl), (), np.asarray(scan_island, dtype=np.int64), np.asarray(scan_pose, float),
-        np.zeros(len(scan_island)), rd.RealIslandConfig(),
+        np.zeros(len(scan_island)), passive.PassiveConfig(),
     )
 
 
@@ -56,7 +64,7 @@ def test_bridging_adds_raw_odometry_from_the_nearer_localized_scan() -> None:
         "ODOM 0.8 0 0 0 0 0 3.5 h 3.5\n",
         "FLASER 2 1 1 1.0 0 0 0 0 0 4.0 h 4.0\n",
     ]
-    track = rd.parse_pose_track(lines)
+    track = carmen.pose_track(carmen.parse_carmen(lines))
     run = _run([0, 0], [[0.0, 0.0, 0.0], [1.1, 0.0, 0.0]])
     u = rd.INTEL_LOG_TO_UNIX_S
     rel = rd.Relations(np.array([0.0 + u]), np.array([1.0 + u]), np.array([[0.32, 0.0, 0.0]]))
@@ -78,22 +86,20 @@ def test_bridging_adds_raw_odometry_from_the_nearer_localized_scan() -> None:
 
 @pytest.fixture(scope="module")
 def intel(shared_data: Path) -> tuple[rd.PoseTrack, np.ndarray, rd.Relations]:
-    from island_mapping.bag.carmen import read_carmen
-
-    log = read_carmen(shared_data / "intel" / "intel.gfs.log")
-    track = rd.read_pose_track(shared_data / "intel" / "intel.gfs.log")
-    rel = rd.read_relations(shared_data / "intel" / "intel.relations")
+    records = carmen.read_carmen_records(shared_data / "intel" / "intel.gfs.log")
+    log, track = carmen.carmen_log(records), carmen.pose_track(records)
+    rel = read_relations(shared_data / "intel" / "intel.relations")
     return track, log.ranges_m, rel
 
 
 @pytest.fixture(scope="module")
-def laser_run(intel: tuple[rd.PoseTrack, np.ndarray, rd.Relations]) -> rd.IslandRun:
+def laser_run(intel: tuple[rd.PoseTrack, np.ndarray, rd.Relations]) -> passive.IslandRun:
     track, ranges, _ = intel
     rows = track.scan_rows[:N_SCANS]
-    return rd.build_islands_offline(ranges[:N_SCANS], track.raw[rows], track.times_s[rows])
+    return offline.build_islands_offline(ranges[:N_SCANS], track.raw[rows], track.times_s[rows])
 
 
-def test_islands_on_the_first_intel_scans_follow_eq3(laser_run: rd.IslandRun) -> None:
+def test_islands_on_the_first_intel_scans_follow_eq3(laser_run: passive.IslandRun) -> None:
     run = laser_run
     cfg = run.config
     assert len(run.islands) >= 1
@@ -118,7 +124,7 @@ def test_islands_on_the_first_intel_scans_follow_eq3(laser_run: rd.IslandRun) ->
 
 
 def test_island_localization_beats_a_loose_bound_on_covered_relations(
-    laser_run: rd.IslandRun, intel: tuple[rd.PoseTrack, np.ndarray, rd.Relations]
+    laser_run: passive.IslandRun, intel: tuple[rd.PoseTrack, np.ndarray, rd.Relations]
 ) -> None:
     track, _, rel = intel
     scan_t = track.times_s[track.scan_rows[:N_SCANS]]
@@ -137,27 +143,27 @@ def test_sonar_like_mode_keeps_few_beams_and_still_builds_islands(
     track, ranges, _ = intel
     n = 40
     rows = track.scan_rows[:n]
-    cfg = rd.sonar_like_config(24)
-    assert cfg.beams == 24 and cfg.max_range_m == rd.SONAR_LIKE_RANGE_M
+    cfg = offline.sonar_like_config(24)
+    assert cfg.beams == 24 and cfg.max_range_m == offline.SONAR_LIKE_RANGE_M
     seen: list[int] = []
 
     def fitter(points: np.ndarray) -> LineModel:
         seen.append(points.shape[0])
-        return rd.core_fitter(cfg.line_fit)(points)
+        return fit_lines(points, cfg.islands.builder.line_fit)
 
-    run = rd.build_islands_offline(ranges[:n], track.raw[rows], track.times_s[rows], cfg,
-                                   fitter=fitter)
-    window = 2 * cfg.half_window_scans + 1
+    run = offline.build_islands_offline(ranges[:n], track.raw[rows], track.times_s[rows], cfg,
+                                        fitter=fitter)
+    window = 2 * cfg.islands.half_window_scans + 1
     assert seen and max(seen) <= 24 * window
     assert len(run.attempts) >= 1
     assert len(run.islands) >= 1
 
 
 def test_bad_inputs_are_clear_errors() -> None:
-    with pytest.raises(rd.RealDataError, match="beams"):
-        rd.RealIslandConfig(beams=32)
-    with pytest.raises(rd.RealDataError, match="ranges"):
-        rd.build_islands_offline(np.zeros((3, 180)), np.zeros((2, 3)), np.zeros(3))
+    with pytest.raises(offline.OfflineError, match="beams"):
+        offline.OfflineConfig(beams=32)
+    with pytest.raises(offline.OfflineError, match="ranges"):
+        offline.build_islands_offline(np.zeros((3, 180)), np.zeros((2, 3)), np.zeros(3))
 
 
 def test_sonar_like_scans_localize_in_laser_built_islands(
@@ -166,22 +172,21 @@ def test_sonar_like_scans_localize_in_laser_built_islands(
     track, ranges, _ = intel
     n = 30
     rows = track.scan_rows[:n]
-    cfg = rd.RealIslandConfig(localize_beams=16)
+    cfg = offline.OfflineConfig(localize_beams=16)
     fit_sizes: list[int] = []
     fix_sizes: list[int] = []
-    fit = rd.core_fitter(cfg.line_fit)
-    loc = rd.core_localizer(cfg.localize)
+    loc = passive.core_localizer(cfg.islands.builder.localize)
 
     def fitter(points: np.ndarray) -> LineModel:
         fit_sizes.append(points.shape[0])
-        return fit(points)
+        return fit_lines(points, cfg.islands.builder.line_fit)
 
-    def localizer(model: LineModel, points: np.ndarray, guess: np.ndarray) -> rd.ScanFix:
+    def localizer(model: LineModel, points: np.ndarray, guess: np.ndarray) -> passive.ScanFix:
         fix_sizes.append(points.shape[0])
         return loc(model, points, guess)
 
-    run = rd.build_islands_offline(ranges[:n], track.raw[rows], track.times_s[rows], cfg,
-                                   localizer=localizer, fitter=fitter)
+    run = offline.build_islands_offline(ranges[:n], track.raw[rows], track.times_s[rows], cfg,
+                                        localizer=localizer, fitter=fitter)
     assert len(run.islands) >= 1
     assert max(fit_sizes) > 100  # island models come from the full laser scans
     assert fix_sizes and max(fix_sizes) > 16  # window alignment uses laser scans ...
@@ -189,8 +194,8 @@ def test_sonar_like_scans_localize_in_laser_built_islands(
     localized = int((run.scan_island >= 0).sum())
     assert localized >= 1
     assert sum(1 for k in fix_sizes if k <= 16) >= localized
-    with pytest.raises(rd.RealDataError, match="localize_beams"):
-        rd.RealIslandConfig(localize_beams=7)
+    with pytest.raises(offline.OfflineError, match="localize_beams"):
+        offline.OfflineConfig(localize_beams=7)
 
 
 def _points_seen_from(segments: np.ndarray, pose: np.ndarray, step_m: float = 0.1) -> np.ndarray:
@@ -208,14 +213,14 @@ def _points_seen_from(segments: np.ndarray, pose: np.ndarray, step_m: float = 0.
 def test_place_search_finds_a_pose_in_an_asymmetric_room_and_flags_a_corridor() -> None:
     room = np.array([[-3, -2, 4, -2], [4, -2, 4, 3], [4, 3, 0, 3], [0, 3, 0, 1], [0, 1, -3, 1],
                      [-3, 1, -3, -2], [1.5, 0.0, 2.5, 0.0]], dtype=float)  # L-shape + a box edge
-    search = rd.PlaceSearch(LineModel(room), half_extent_m=8.0, coverage_m=3.0)
+    search = PlaceSearch(LineModel(room), half_extent_m=8.0, coverage_m=3.0)
     true_pose = np.array([1.0, -0.6, math.radians(70.0)])
     pose, score, second = search.search(_points_seen_from(room, true_pose))
     assert math.hypot(pose[0] - true_pose[0], pose[1] - true_pose[1]) <= 0.15
     assert abs(math.degrees(wrap_angles(pose[2] - true_pose[2]))) <= 5.0
     assert score > 0.9 and score - second > 0.2
     corridor = np.array([[-20, -1, 20, -1], [-20, 1, 20, 1]], dtype=float)
-    search_c = rd.PlaceSearch(LineModel(corridor), half_extent_m=8.0, coverage_m=3.0)
+    search_c = PlaceSearch(LineModel(corridor), half_extent_m=8.0, coverage_m=3.0)
     _, score_c, second_c = search_c.search(_points_seen_from(corridor, np.array([0.5, 0, 0])))
     assert score_c > 0.9 and score_c - second_c < 0.05  # every position along it fits
 
@@ -240,7 +245,7 @@ def _synthetic_revisit_log() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     back += [(3.6 - 0.4 * k, 2.5, math.pi) for k in range(4)]
     back += [(2.4, 2.5, 0.0), (2.8, 2.5, 0.0)]  # turn round: face the part seen on the way out
     true = np.array(out + back)
-    angles = rd.beam_angles(180)
+    angles = carmen.flaser_angles(180)
     ranges = []
     for x, y, th in true:
         hits = world.raycast(np.tile([x, y], (180, 1)), th + angles, 20.0)
@@ -255,14 +260,16 @@ def _synthetic_revisit_log() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
 
 def test_place_recognition_re_enters_the_first_island_after_odometry_fails() -> None:
     ranges, raw, true, times = _synthetic_revisit_log()
-    base = rd.RealIslandConfig(builder=rd.BuilderConfig(e_min_m=0.05))
-    plain = rd.build_islands_offline(ranges, raw, times, base)
-    found = rd.build_islands_offline(
-        ranges, raw, times, dataclasses.replace(base, place_recognition=True))
+    isl = passive.replace_builder(passive.PassiveConfig(), e_min_m=0.05)
+    base = offline.OfflineConfig(islands=isl)
+    plain = offline.build_islands_offline(ranges, raw, times, base)
+    found = offline.build_islands_offline(
+        ranges, raw, times,
+        dataclasses.replace(base, islands=dataclasses.replace(isl, place_recognition=True)))
     for run in (plain, found):
         assert run.islands and run.islands[0].anchor_scan < 4  # island 0 is in room A
 
-    def room_a_ids(run: rd.IslandRun) -> set[int]:
+    def room_a_ids(run: passive.IslandRun) -> set[int]:
         return {i.island.id for i in run.islands if i.anchor_scan < 4}
 
     tail = slice(true.shape[0] - 2, true.shape[0])  # the last scans, back in room A
@@ -275,3 +282,30 @@ def test_place_recognition_re_enters_the_first_island_after_odometry_fails() -> 
         got = found.scan_pose[j]
         assert math.hypot(*(got[:2] - truth[:2])) < 0.1
         assert abs(math.degrees(wrap_angles(got[2] - truth[2]))) < 3.0
+
+
+def test_a_fix_restarts_epsilon_and_the_scans_are_decided_online() -> None:
+    """On the synthetic log, every scan localized in an island when it was decided (at or after
+    the island's anchor; scans before it join it when it is built) restarts epsilon: the next
+    scan's epsilon is that of its own odometry increment from zero (a fresh builder fed the
+    two poses). Fed scan by scan, a scan is decided once half_window_scans more have come."""
+    ranges, raw, _, times = _synthetic_revisit_log()
+    isl = passive.replace_builder(passive.PassiveConfig(), e_min_m=0.05)
+    run = offline.build_islands_offline(ranges, raw, times, offline.OfflineConfig(islands=isl))
+    after_fix = [j for j in range(1, raw.shape[0]) if run.scan_island[j - 1] >= 0
+                 and j - 1 >= run.islands[run.scan_island[j - 1]].anchor_scan]
+    assert len(after_fix) >= 5
+    covs = propagate_covariances(raw, offline.OfflineConfig().odometry)
+    for j in after_fix:
+        fresh = passive.PassiveBuilder(isl)
+        for k in (j - 1, j):
+            fresh.on_odometry(times[k], Pose2D(*raw[k]), covs[k])
+            fresh.on_scan(times[k], np.zeros((0, 2)))
+        assert run.epsilon_m[j] > 0.0
+        assert run.epsilon_m[j] == pytest.approx(fresh.finish().epsilon_m[1], rel=1e-9)
+    b = passive.PassiveBuilder(isl)
+    build, _ = offline.beam_points(ranges, offline.OfflineConfig(islands=isl))
+    for k in range(4):
+        b.on_odometry(times[k], Pose2D(*raw[k]), covs[k])
+        b.on_scan(times[k], build[k])
+        assert b.run().scan_island.size == max(0, k + 1 - isl.half_window_scans)

@@ -24,7 +24,9 @@ from typing import Any
 import numpy as np
 
 from island_mapping.cli import CliError
-from island_mapping.core import realdata as rd
+from island_mapping.core import relations as rel
+from island_mapping.core.builder.passive import IslandRun
+from island_mapping.logs import islands as offline
 
 # Default bridging limit: about half the Intel log's median scan interval (3.35 s), so every
 # relation time can reach the nearer of its two neighbouring scans [s].
@@ -35,9 +37,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log", required=True, help="CARMEN log (FLASER/ODOM), e.g. intel.gfs.log")
     parser.add_argument("--relations", required=True, help="Kuemmerle relations file")
     parser.add_argument("--out", required=True, help="output directory")
-    parser.add_argument("--beams", type=int, default=180, choices=rd.SUPPORTED_BEAMS,
+    parser.add_argument("--beams", type=int, default=180, choices=offline.SUPPORTED_BEAMS,
                         help="180 = the laser; 24 or 16 = sonar-like mode (beams kept per scan)")
-    parser.add_argument("--localize-beams", type=int, default=0, choices=(0, *rd.SUPPORTED_BEAMS),
+    parser.add_argument("--localize-beams", type=int, default=0,
+                        choices=(0, *offline.SUPPORTED_BEAMS),
                         help="beams used to localize scans in the islands (0 = --beams): "
                              "--beams 180 --localize-beams 24 localizes sonar-like scans in "
                              "laser-built islands")
@@ -53,7 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="use only the first N scans (quick runs)")
 
 
-def _stats(score: rd.RelationScore) -> dict[str, Any]:
+def _stats(score: rel.RelationScore) -> dict[str, Any]:
     return {
         "covered_relations": int(np.sum(score.covered)),
         "relations_with_pose_at_both_ends": score.ends_at_scans,
@@ -78,31 +81,34 @@ def _progress(scan: int, scans: int, islands: int) -> None:
 
 def evaluate(args: argparse.Namespace) -> dict[str, Any]:
     """Run the evaluation and return metrics (no files written)."""
-    from island_mapping.bag.carmen import read_carmen
-    from island_mapping.bag.errors import BagError
+    from island_mapping.logs.carmen import carmen_log, pose_track, read_carmen_records
+    from island_mapping.logs.errors import LogFormatError
+    from island_mapping.logs.relations import read_relations
 
     if args.max_scans is not None and args.max_scans < 2:
         raise CliError(f"--max-scans: need at least 2 scans, got {args.max_scans}")
     if not (math.isfinite(args.bridge_s) and args.bridge_s >= 0):
         raise CliError(f"--bridge-s: expected a number >= 0, got {args.bridge_s}")
     try:
-        log = read_carmen(args.log)
-        relations = rd.read_relations(args.relations)
-        track = rd.read_pose_track(args.log)
-    except (BagError, rd.RealDataError) as exc:
+        records = read_carmen_records(args.log)
+        log, track = carmen_log(records), pose_track(records)
+        relations = read_relations(args.relations)
+    except LogFormatError as exc:
         raise CliError(str(exc)) from None
     if not np.array_equal(track.times_s[track.scan_rows], log.times_s):
         raise CliError(f"{args.log}: scan times of the pose track and the CARMEN reader differ")
     if len(relations) == 0:
         raise CliError(f"{args.relations}: no relations")
     n = log.n_scans if args.max_scans is None else min(args.max_scans, log.n_scans)
-    cfg = dataclasses.replace(rd.sonar_like_config(args.beams), localize_beams=args.localize_beams,
-                              place_recognition=args.place_recognition)
-    run = rd.build_islands_offline(log.ranges_m[:n], log.raw_odometry[:n], log.times_s[:n], cfg,
-                                   progress=_progress)
+    base = offline.sonar_like_config(args.beams)
+    cfg = dataclasses.replace(
+        base, localize_beams=args.localize_beams,
+        islands=dataclasses.replace(base.islands, place_recognition=args.place_recognition))
+    run = offline.build_islands_offline(log.ranges_m[:n], log.raw_odometry[:n], log.times_s[:n],
+                                        cfg, progress=_progress)
     scan_t = log.times_s[:n]
-    strict = rd.score_relations(run, scan_t, relations, track)
-    bridged = rd.score_relations(run, scan_t, relations, track, bridge_s=args.bridge_s)
+    strict = rel.score_relations(run, scan_t, relations, track)
+    bridged = rel.score_relations(run, scan_t, relations, track, bridge_s=args.bridge_s)
     metrics: dict[str, Any] = {
         **_stats(strict),
         "island_count": len(run.islands),
@@ -120,7 +126,7 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
         "revisit_relations_covered": int(np.sum(
             bridged.covered & (np.abs(relations.t2_s - relations.t1_s) > REVISIT_S))),
         "seed": args.seed,
-        "scan_match_tolerance_s": rd.SCAN_MATCH_TOLERANCE_S,
+        "scan_match_tolerance_s": rel.SCAN_MATCH_TOLERANCE_S,
         "config": _config_summary(cfg),
         "islands": [
             {
@@ -139,7 +145,7 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
     return metrics
 
 
-def _config_summary(cfg: rd.RealIslandConfig) -> dict[str, Any]:
+def _config_summary(cfg: offline.OfflineConfig) -> dict[str, Any]:
     def clean(v: Any) -> Any:
         if isinstance(v, dict):
             return {k: clean(x) for k, x in v.items()}
@@ -159,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise CliError(f"--out {out}: exists and is not a directory")
     metrics = evaluate(args)
-    island_run: rd.IslandRun = metrics.pop("_run")
+    island_run: IslandRun = metrics.pop("_run")
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
     mode = "laser" if args.beams == 180 else f"sonar-like, {args.beams} beams"

@@ -16,7 +16,7 @@ import json
 from pathlib import Path
 
 from island_mapping.cli import CliError
-from island_mapping.core import realdata as rd
+from island_mapping.core import sonar_ring as rd
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -28,6 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from island_msgs_py.json_io import atomic_write_text
 
+    from island_mapping.logs.errors import LogFormatError
+    from island_mapping.logs.uci_sonar import read_sonar_ring
     from island_mapping.viz.realdata import plot_ring_scores
 
     if args.limit is not None and args.limit < 1:
@@ -36,8 +38,8 @@ def run(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise CliError(f"--out {out}: exists and is not a directory")
     try:
-        readings = rd.read_sonar_ring(args.data, args.limit)
-    except rd.RealDataError as exc:
+        readings = read_sonar_ring(args.data, args.limit)
+    except LogFormatError as exc:
         raise CliError(str(exc)) from None
     if readings.ranges_m.shape[0] == 0:
         raise CliError(f"{args.data}: no readings")

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from island_mapping.core.realdata import RealIsland, RingScores, SonarReadings
+from island_mapping.core.builder.passive import PassiveIsland
+from island_mapping.core.sonar_ring import RingScores, SonarReadings
 from island_mapping.viz import pyplot, save_figure
 
 # Islands per row of the Fig. 5b-like layout, and the gap between their boxes [m].
@@ -19,7 +20,7 @@ _GAP_M = 2.0
 
 
 
-def island_layout(islands: Sequence[RealIsland]) -> list[tuple[float, float]]:
+def island_layout(islands: Sequence[PassiveIsland]) -> list[tuple[float, float]]:
     """Offsets [m] that place each island's model (in its own frame) in a grid, for clarity
     only (no global frame exists): cells as large as most of the models (the 90th percentile
     of endpoint distances from the origins; a few far segments may reach a neighbour's cell)
@@ -34,7 +35,7 @@ def island_layout(islands: Sequence[RealIsland]) -> list[tuple[float, float]]:
 
 
 def plot_islands(
-    islands: Sequence[RealIsland], path: str | os.PathLike[str], title: str = ""
+    islands: Sequence[PassiveIsland], path: str | os.PathLike[str], title: str = ""
 ) -> Path:
     """Each island's line model drawn in its own frame, a dot at its origin, laid out in a grid
     (like the paper's Fig. 5b); the island id and its best normalized measure label each."""

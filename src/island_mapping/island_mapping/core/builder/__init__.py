@@ -7,11 +7,13 @@ Pure decision logic (numpy only, no ROS). Modules, each one job:
 - `epsilon`: eq. 3 (RelativeCovariance, eq3_bound, normalized_measures, Measures);
 - `star`: the star's decisions as functions (leg registration, the origin's peak, probes);
 - `checks`: the localization check and registrations onto a model;
-- `recognition`: the Recognizer of known islands (revisits) and its link graph (`links`);
+- `recognition`: the Recognizer of known islands (revisits) and its link graph (`links`), with
+  the correlative place search (`places`) as a strategy for a lost robot;
 - `follow`: when an attempt may start while the follower drives;
 - `motion`: turns, straight drives, docking and looks (no decisions);
 - `diagnostics`: counts, refusals, probes;
-- `machine`: IslandBuilder, the state machine that wires them;
+- `machine`: IslandBuilder, the state machine that wires them (the live builder);
+- `passive`: PassiveBuilder, the same core on a recording (no star: a log cannot be driven);
 - `stamps`: StampSync, scan/odometry stamp pairing for the node.
 """
 
@@ -42,6 +44,7 @@ from island_mapping.core.builder.events import (
 )
 from island_mapping.core.builder.follow import follower_settled, follower_turning
 from island_mapping.core.builder.machine import IslandBuilder
+from island_mapping.core.builder.passive import IslandRun, PassiveBuilder, PassiveConfig
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
 from island_mapping.core.builder.stamps import StampSync
 from island_mapping.core.builder.star import Survey, peak_origin
@@ -59,7 +62,10 @@ __all__ = [
     "EventKind",
     "FitFn",
     "IslandBuilder",
+    "IslandRun",
     "Measures",
+    "PassiveBuilder",
+    "PassiveConfig",
     "PoseSnapshot",
     "ProbeOutcome",
     "Recognition",

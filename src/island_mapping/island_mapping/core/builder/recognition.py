@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from island_msgs_py.geometry import relative_poses
 from island_msgs_py.types import FloatArray, Island, Pose2D, wrap_angle
 
 from island_mapping.core.builder.checks import localizes_back
@@ -24,6 +25,7 @@ from island_mapping.core.builder.config import BuilderConfig
 from island_mapping.core.builder.diagnostics import Diagnostics, Refusal
 from island_mapping.core.builder.geometry import drive_clear, from_frame, to_frame
 from island_mapping.core.builder.links import Link, LinkGraph
+from island_mapping.core.builder.places import PlaceSearch
 from island_mapping.core.lines import point_segment_distance, thin_evenly
 from island_mapping.core.localize import localize
 
@@ -89,6 +91,7 @@ class Recognizer:
         self.config = config
         self.diagnostics = diagnostics if diagnostics is not None else Diagnostics()
         self._known: dict[int, tuple[Pose2D, FloatArray]] = {}
+        self._places: dict[int, PlaceSearch] = {}
         self.links = LinkGraph()
 
     # ----- what is known -----
@@ -105,6 +108,37 @@ class Recognizer:
     @property
     def known_ids(self) -> list[int]:
         return sorted(self._known)
+
+    def near(self, odom: Pose2D, radius_m: float) -> list[tuple[float, int, FloatArray]]:
+        """Known islands whose origin lies within radius_m [m] of the odometric pose `odom`,
+        nearest first: (distance [m], island id, `odom` in the island's frame by odometry as
+        an (x, y, theta) row)."""
+        here = np.array([odom.x, odom.y, odom.theta])
+        out = []
+        for iid, (origin, _) in self._known.items():
+            est = relative_poses(np.array([origin.x, origin.y, origin.theta]), here)[0]
+            dist = math.hypot(est[0], est[1])
+            if dist <= radius_m:
+                out.append((dist, iid, est))
+        return sorted(out, key=lambda c: c[0])
+
+    def add_place_search(self, island_id: int, search: PlaceSearch) -> None:
+        """Let `place` search island island_id's model by `search` (its correlative search)."""
+        self._places[island_id] = search
+
+    def place(self, points: FloatArray, margin: float) -> tuple[int, FloatArray] | None:
+        """The correlative place search over every island given one (`add_place_search`):
+        (island id, the best pose of robot-frame `points` in its frame as an (x, y, theta)
+        row) of the best score that beats its island's best distinct hypothesis by `margin`;
+        None when no island's does."""
+        best: tuple[float, int, FloatArray] | None = None
+        for iid, search in self._places.items():
+            guess, score, second = search.search(points)
+            if score - second < margin:
+                continue
+            if best is None or score > best[0]:
+                best = (score, iid, guess)
+        return None if best is None else (best[1], best[2])
 
     def link(self, a: int, b: int, origin_b_odom: Pose2D, sigma_m: float,
              sigma_rad: float) -> None:

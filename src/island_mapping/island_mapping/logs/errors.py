@@ -1,0 +1,8 @@
+"""The log readers' exception (no heavy imports)."""
+
+from __future__ import annotations
+
+
+class LogFormatError(ValueError):
+    """A log file could not be read or parsed; the message names the file, the line number and
+    the problem."""

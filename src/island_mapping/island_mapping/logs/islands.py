@@ -1,0 +1,169 @@
+"""Islands from a log's scans and odometry: the log's beams become points, and the builder's
+passive mode (island_mapping.core.builder.passive) walks the scans as the exploring robot would
+(`build_islands_offline`). The laser mode keeps every beam; the sonar-like modes keep 24 or 16
+beams (the same beams as the MCAP importer), a sonar's range and line fit, and a wider window.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+from island_msgs_py.types import Pose2D
+
+from island_mapping.core.builder.epsilon import (
+    EvaluateFn,
+    FitFn,
+    OdometryErrorModel,
+    propagate_covariances,
+)
+from island_mapping.core.builder.passive import (
+    IslandRun,
+    Localizer,
+    PassiveBuilder,
+    PassiveConfig,
+    replace_builder,
+)
+from island_mapping.core.lines import LineFitConfig
+from island_mapping.logs.carmen import flaser_angles, sonar_like_indices
+
+FloatArray = npt.NDArray[np.float64]
+
+SUPPORTED_BEAMS = (180, 24, 16)
+"""Beam counts the tools accept: the full laser scan, and the sonar-like rings (24, 16)."""
+SONAR_LIKE_RANGE_M = 6.5
+"""The sonar-like modes keep a Nomad-200 sonar's range [m]..."""
+SONAR_LIKE_HALF_WINDOW = 4
+"""...and accumulate more scans per island model (few beams per scan; the paper's four-corner
+routine also gathers several ring readings)."""
+
+
+class OfflineError(ValueError):
+    """Bad offline-builder input; the message names the argument and the problem."""
+
+
+@dataclass(frozen=True)
+class OfflineConfig:
+    """Which beams of a log's scans build islands and which are localized in them, and the
+    passive builder (single source of the offline defaults)."""
+
+    beams: int = field(
+        default=180,
+        metadata={"help": "beams kept from each 180-beam scan: 180 = laser, 24 or 16 = "
+                  "sonar-like mode [-]"},
+    )
+    max_range_m: float = field(
+        default=10.0, metadata={"help": "readings beyond this are ignored (no return) [m]"}
+    )
+    localize_beams: int = field(
+        default=0,
+        metadata={"help": "beams kept for localizing scans in islands (0 = `beams`); e.g. 24 "
+                  "localizes sonar-like scans (6.5 m range) in islands built from the laser [-]"},
+    )
+    odometry: OdometryErrorModel = field(
+        default_factory=OdometryErrorModel,
+        metadata={"help": "the raw odometry's error model, which propagates the covariance the "
+                  "log does not record (epsilon, eq. 3)"},
+    )
+    islands: PassiveConfig = field(
+        default_factory=PassiveConfig, metadata={"help": "the passive builder"}
+    )
+
+    def __post_init__(self) -> None:
+        if self.beams not in SUPPORTED_BEAMS:
+            raise OfflineError(f"OfflineConfig.beams: expected one of {SUPPORTED_BEAMS}, "
+                               f"got {self.beams}")
+        if self.localize_beams not in (0, *SUPPORTED_BEAMS):
+            raise OfflineError(f"OfflineConfig.localize_beams: expected 0 or one of "
+                               f"{SUPPORTED_BEAMS}, got {self.localize_beams}")
+        if not (math.isfinite(self.max_range_m) and self.max_range_m > 0):
+            raise OfflineError(f"OfflineConfig.max_range_m: expected a number > 0, got "
+                               f"{self.max_range_m!r}")
+
+
+def sonar_like_config(beams: int, base: OfflineConfig | None = None) -> OfflineConfig:
+    """The sonar-like mode: keep `beams` beams, sonar range (6.5 m) and sonar line fitting."""
+    cfg = base if base is not None else OfflineConfig()
+    if beams == 180:
+        return dataclasses.replace(cfg, beams=180)
+    isl = cfg.islands
+    islands = dataclasses.replace(
+        replace_builder(isl, line_fit=LineFitConfig(),
+                        measure=dataclasses.replace(isl.builder.measure,
+                                                    max_range_m=SONAR_LIKE_RANGE_M)),
+        half_window_scans=max(isl.half_window_scans, SONAR_LIKE_HALF_WINDOW),
+        max_residual_m=max(isl.max_residual_m, 0.1),
+        min_matched_fraction=min(isl.min_matched_fraction, 0.5),
+        search_range_m=SONAR_LIKE_RANGE_M,
+    )
+    return dataclasses.replace(cfg, beams=beams, max_range_m=SONAR_LIKE_RANGE_M, islands=islands)
+
+
+def scan_points(ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike,
+                max_range_m: float) -> FloatArray:
+    """(N, 2) points [m] in the robot frame; readings that are non-finite, <= 0 or beyond
+    max_range_m (no return: the Intel log reports 81.83 m) are dropped."""
+    r = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
+    a = np.asarray(angles_rad, dtype=np.float64).reshape(-1)
+    if r.shape != a.shape:
+        raise OfflineError(f"scan: {r.size} ranges for {a.size} beam angles")
+    ok = np.isfinite(r) & (r > 0.0) & (r <= max_range_m)
+    return np.stack([r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])], axis=1)
+
+
+def beam_points(ranges_m: FloatArray, cfg: OfflineConfig
+                ) -> tuple[list[FloatArray], list[FloatArray]]:
+    """Per scan of (S, B) FLASER ranges: the points that build island models (the kept beams)
+    and the points localized in them (the `localize_beams` subset, if set)."""
+    n_total = ranges_m.shape[1]
+    angles = flaser_angles(n_total)
+
+    def points(n_keep: int, max_range_m: float) -> list[FloatArray]:
+        keep = sonar_like_indices(n_total, min(n_keep, n_total))
+        return [scan_points(r[keep], angles[keep], max_range_m) for r in ranges_m]
+
+    build = points(cfg.beams, cfg.max_range_m)
+    if cfg.localize_beams and cfg.localize_beams != cfg.beams:
+        return build, points(cfg.localize_beams, min(cfg.max_range_m, SONAR_LIKE_RANGE_M))
+    return build, build
+
+
+def build_islands_offline(
+    ranges_m: npt.ArrayLike,
+    raw_poses: npt.ArrayLike,
+    times_s: npt.ArrayLike,
+    config: OfflineConfig | None = None,
+    *,
+    localizer: Localizer | None = None,
+    fitter: FitFn | None = None,
+    evaluator: EvaluateFn | None = None,
+    progress: Callable[[int, int, int], None] | None = None,
+) -> IslandRun:
+    """Islands over a log's scans: ranges_m (S, B) [m] of FLASER geometry, raw_poses (S, 3) the
+    raw odometry at each scan, times_s (S,) [s], fed scan by scan to the passive builder with
+    the covariance the odometry error model propagates along the raw odometry.
+    `progress(scan, scans, islands)` is called after every scan when given."""
+    cfg = config if config is not None else OfflineConfig()
+    rng = np.asarray(ranges_m, dtype=np.float64)
+    raw = np.asarray(raw_poses, dtype=np.float64)
+    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
+    if rng.ndim != 2 or raw.ndim != 2 or raw.shape[1:] != (3,) or not (
+        rng.shape[0] == raw.shape[0] == t.shape[0]
+    ):
+        raise OfflineError(
+            f"build_islands_offline: {rng.shape} ranges, {raw.shape} poses, {t.shape[0]} times"
+        )
+    build, fix = beam_points(rng, cfg)
+    builder = PassiveBuilder(cfg.islands, localizer=localizer, fit=fitter, evaluate=evaluator)
+    covs = propagate_covariances(raw, cfg.odometry)
+    n = raw.shape[0]
+    for i in range(n):
+        builder.on_odometry(float(t[i]), Pose2D(*(float(v) for v in raw[i])), covs[i])
+        builder.on_scan(float(t[i]), build[i], fix[i])
+        if progress is not None and i > 0:
+            progress(i, n, len(builder.islands))
+    return builder.finish()
