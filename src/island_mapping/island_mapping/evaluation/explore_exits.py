@@ -11,13 +11,14 @@ simulator's truth (false arrivals: trusted, yet more than 0.5 m or 10 deg off).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from island_msgs_py.types import ExitUpdate, FloatArray, Island, Pose2D, wrap_angle
-from island_sim.core.hall_follower import HallFollower
+from island_sim.core.hall_follower import HallFollower, HallFollowerConfig, TurnPolicy
 from island_sim.core.robot import SimRobot
 from island_sim.core.sonar import SonarModel
 
@@ -41,6 +42,9 @@ from island_mapping.core.explore import (
 from island_mapping.core.graph import TopoGraph
 from island_mapping.core.route import Fix, NavigateConfig, Sense
 from island_mapping.evaluation.navigate import SimSetup
+
+STRAIGHT_DECISIONS = 2000
+"""Decisions a straight-first follower's script covers (far more than a run makes)."""
 
 FALSE_ARRIVAL_M = 0.5
 FALSE_ARRIVAL_DEG = 10.0
@@ -89,6 +93,15 @@ class ExitsRun:
         return sum(a.false for a in self.arrivals)
 
 
+def straight_first(cfg: HallFollowerConfig) -> HallFollowerConfig:
+    """The follower's config preferring straight on at every decision (left-hand order where
+    straight is closed): handed over at an exit, it carries the robot along that exit's
+    hallway to the next place instead of turning off at the junction it starts in (the
+    explorer, not the follower, chooses where to branch)."""
+    return dataclasses.replace(cfg, policy=TurnPolicy.SCRIPTED,
+                               script=",".join(["straight"] * STRAIGHT_DECISIONS))
+
+
 def apply_items(graph: TopoGraph, event: BuilderEvent) -> None:
     """Apply a builder event's items to the map, as the graph server does."""
     for item in graph_items(event):
@@ -127,14 +140,18 @@ def explore_by_exits(
     start: Pose2D | None = None,
     nav: NavigateConfig | None = None,
     trace: list[dict[str, Any]] | None = None,
+    follow_straight: bool = True,
 ) -> ExitsRun:
     """Explore `setup.world` by its exits until the explorer is done or `sim_s` simulated
-    seconds have passed (module docstring)."""
+    seconds have passed (module docstring); follow_straight: the follower prefers straight
+    on (`straight_first`), else it keeps `setup.follower`'s policy."""
     gen = rng if rng is not None else np.random.default_rng(0)
     world = setup.world
     robot = SimRobot(world, start or world.start_pose, gen, setup.robot, setup.odometry)
     sonar = SonarModel(setup.sonar)
-    follower = HallFollower(setup.follower, np.random.default_rng(int(gen.integers(2**31))))
+    fcfg = straight_first(setup.follower) if follow_straight else setup.follower
+    follower_rng = np.random.default_rng(int(gen.integers(2**31)))
+    follower = HallFollower(fcfg, follower_rng)
     ecfg = explorer_cfg if explorer_cfg is not None else ExplorerConfig()
     graph = TopoGraph()
     judge = _Judge(graph, robot)
@@ -179,7 +196,10 @@ def explore_by_exits(
             unanswered += 1
         who = ("explorer" if ecmd.drive else "builder" if cmd.mode is CommandMode.DRIVE
                else "follower")
-        _apply_requests(ecmd.requests, builder, follower, graph)
+        if _apply_requests(ecmd.requests, builder, graph):
+            # a fresh follower per handover: nothing of its last stretch (hallway axis, stall
+            # timer, pending turn) carries over to the exit it is handed
+            follower = HallFollower(fcfg, follower_rng)
         truth.append(robot.true_pose.as_array())
         odom.append(robot.odom_pose.as_array())
         blocked = False
@@ -210,19 +230,22 @@ def _trace(trace: list[dict[str, Any]], explorer: Explorer, robot: SimRobot,
                       "requests": [repr(r) for r in requests]})
 
 
-def _apply_requests(requests: tuple[object, ...], builder: IslandBuilder, follower: HallFollower,
-                    graph: TopoGraph) -> None:
-    """The explorer's requests, as the builder and graph server nodes would take them."""
+def _apply_requests(requests: tuple[object, ...], builder: IslandBuilder, graph: TopoGraph
+                    ) -> bool:
+    """The explorer's requests, as the builder and graph server nodes would take them; True
+    when the robot was handed over (the follower starts afresh)."""
+    handed = False
     for r in requests:
         if isinstance(r, Docked):
             builder.on_docked(r.island_id, r.origin_odom)
         elif isinstance(r, Handover):
-            follower.reset_strategy()
             builder.handover(r.island_id, r.exit_index, r.prefix)
+            handed = True
         elif isinstance(r, Abort):
             builder.abort()
         elif isinstance(r, ExitUpdate):
             graph.apply_exit_update(r)
+    return handed
 
 
 _ = EventKind

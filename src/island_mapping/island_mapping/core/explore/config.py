@@ -136,13 +136,19 @@ class ExplorerConfig:
         metadata={"help": "times an exit is tried again after a departure that got lost "
                           "before it is marked blocked [-]"},
     )
+    revisit_near_m: float = field(
+        default=2.5,
+        metadata={"help": "a recognised island is docked onto only when the robot is this "
+                          "close to its origin (at its place, not seeing it from the next "
+                          "one) [m]"},
+    )
     exit: ExitConfig = field(
         default_factory=ExitConfig, metadata={"help": "how exits are found at an island"}
     )
 
     def __post_init__(self) -> None:
         _check_numbers(self, ("exit_cap_s", "door_max_width_m", "door_through_m", "map_wait_s",
-                              "look_buffer_s"),
+                              "look_buffer_s", "revisit_near_m"),
                        ("depart_min_free_m", "lane_snap_m"))
         if isinstance(self.retries_per_exit, bool) or not isinstance(self.retries_per_exit, int) \
                 or self.retries_per_exit < 0:
