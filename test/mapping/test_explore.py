@@ -23,6 +23,8 @@ from island_mapping.core.explore import (
     unexplored_count,
 )
 from island_mapping.core.graph import TopoGraph
+from island_mapping.evaluation.explore_exits import explore_by_exits
+from island_mapping.evaluation.navigate import SimSetup
 from island_msgs_py.types import (
     ControlStrategy,
     Edge,
@@ -33,6 +35,7 @@ from island_msgs_py.types import (
     ModelType,
     Pose2D,
 )
+from island_sim.core.world_loader import load_world
 
 # Walls in an island's frame (theta 0 along the hallway the robot arrived on, from -x) [m].
 T_WALLS = np.array([[-6, -1, 6, -1], [-6, 1, -1, 1], [1, 1, 6, 1], [-1, 1, -1, 6],
@@ -163,3 +166,19 @@ def test_the_builder_refuses_a_handover_it_cannot_take() -> None:
     with pytest.raises(BuilderError, match="only while idle"):
         managed.on_docked(0, Pose2D(0.0, 0.0, 0.0))
     assert managed.islands == [] or len(managed.islands) == 0
+
+
+def test_exploration_ends_by_itself_in_a_small_world_with_every_exit_explored() -> None:
+    """The T world offline (simulator, builder in managed mode, explorer, hall follower): the
+    explorer says it is done, no exit is left unexplored, the map has an edge per explored
+    exit, and no arrival was reported localized while wrong, no wall touched."""
+    run = explore_by_exits(SimSetup(world=load_world("t_junction")), 600.0,
+                           rng=np.random.default_rng(1))
+    assert run.done and run.sim_seconds < 600.0
+    exits = [e for i in run.graph.islands() for e in i.exits]
+    assert len(run.graph) >= 2 and exits
+    assert all(e.state is not ExitState.UNEXPLORED for e in exits)
+    for e in exits:
+        if e.state is ExitState.EXPLORED:
+            assert e.edge is not None and run.graph.has_edge(*e.edge)
+    assert run.false_arrivals == 0 and run.collisions == 0
