@@ -11,12 +11,14 @@ import numpy as np
 import pytest
 from island_mapping.core.builder import BuilderConfig, BuilderError, IslandBuilder
 from island_mapping.core.builder.hooks import BuilderHooks
+from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
 from island_mapping.core.explore import (
     ExitConfig,
     ExitEvidence,
     ExploreError,
     ExplorerConfig,
     arrival_exit,
+    explorer_hooks,
     find_exits,
     nearest_unexplored,
     route_edges,
@@ -182,3 +184,51 @@ def test_exploration_ends_by_itself_in_a_small_world_with_every_exit_explored() 
         if e.state is ExitState.EXPLORED:
             assert e.edge is not None and run.graph.has_edge(*e.edge)
     assert run.false_arrivals == 0 and run.collisions == 0
+
+
+def _robot_points(walls: np.ndarray, robot: Pose2D, rng: np.random.Generator,
+                  range_m: float = 5.0) -> np.ndarray:
+    """Echoes of `walls` within range_m of `robot`, in the robot's frame [m]."""
+    p = echoes(walls, rng, step_m=0.2, noise_m=0.02)
+    p = p[np.hypot(p[:, 0] - robot.x, p[:, 1] - robot.y) <= range_m]
+    c, s = math.cos(robot.theta), math.sin(robot.theta)
+    d = p - np.array([robot.x, robot.y])
+    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+
+
+def _t_island(iid: int) -> Island:
+    return Island(iid, LineModel(T_WALLS), ModelType.LINE, 1.0, 0.0)
+
+
+@pytest.mark.parametrize("right", [0, 1])
+def test_a_revisit_docks_onto_the_right_island(right: int) -> None:
+    """Two T junctions 30 m apart by odometry; the robot is back 0.45 m from one of them:
+    that one is recognised, at the robot's true pose in its frame."""
+    robot_in_island = Pose2D(0.4, 0.2, 0.05)
+    origins = {0: Pose2D(0.0, 0.0, 0.0), 1: Pose2D(30.0, 0.0, 0.0)}
+    at = origins[right].compose(robot_in_island)
+    rec = Recognizer(BuilderConfig())
+    for iid, o in origins.items():
+        rec.remember(iid, o, np.zeros((3, 3)))
+    snap = PoseSnapshot(at, np.diag([0.01, 0.01, 0.001]), 0.3, 0.02, 1 - right, 50.0)
+    pts = _robot_points(T_WALLS, robot_in_island, np.random.default_rng(5))
+    found = rec.recognize(pts, at, snap, [_t_island(0), _t_island(1)])
+    assert found is not None and found.island_id == right
+    assert math.hypot(found.pose.x - 0.4, found.pose.y - 0.2) < 0.1
+    gate = explorer_hooks(ExplorerConfig(), TopoGraph).accept_revisit
+    assert gate is not None and gate(found, snap, _t_island(right), False)
+    far = Recognition(right, Pose2D(4.0, 0.0, 0.0), found.residual_m, found.inlier_fraction)
+    assert not gate(far, snap, _t_island(right), False)  # seen from the next place: no dock
+
+
+def test_an_ambiguous_revisit_does_not_dock_without_more_evidence() -> None:
+    """Two identical T junctions 4 m apart, both within the search window of a drifted
+    odometry: the points fit both, so neither is recognised (a look-alike refusal)."""
+    robot_in_island = Pose2D(0.4, 0.2, 0.05)
+    rec = Recognizer(BuilderConfig())
+    rec.remember(0, Pose2D(0.0, 0.0, 0.0), np.zeros((3, 3)))
+    rec.remember(1, Pose2D(4.0, 0.0, 0.0), np.zeros((3, 3)))
+    snap = PoseSnapshot(robot_in_island, np.diag([1.0, 1.0, 0.001]), 0.3, 0.02, None, 50.0)
+    pts = _robot_points(T_WALLS, robot_in_island, np.random.default_rng(6))
+    assert rec.recognize(pts, robot_in_island, snap, [_t_island(0), _t_island(1)]) is None
+    assert rec.diagnostics.revisit_refusals.get("look_alike", 0) >= 1
