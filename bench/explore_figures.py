@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 from pathlib import Path
 
 from island_mapping.evaluation.explore_eval import Policy, measure_exploration
@@ -26,11 +27,14 @@ def main() -> None:
     p.add_argument("--sim-seconds", type=float, default=3600.0)
     p.add_argument("--routes", type=int, default=10)
     a = p.parse_args()
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True, check=False, cwd=Path(__file__).parent).stdout.strip()
     for world in a.worlds:
         for policy in a.policies:
             for seed in a.seeds:
                 row = measure_exploration(world, Policy(policy), seed, a.sim_seconds, a.routes)
                 row["load_avg_1m"] = round(os.getloadavg()[0], 2)
+                row["commit"] = commit
                 with a.out.open("a") as f:
                     f.write(json.dumps(row) + "\n")
                 print(json.dumps({k: row[k] for k in (

@@ -287,7 +287,11 @@ class Explorer:
         assert d is not None
         edges = route_edges(self.graph, target.route)
         islands = {i.id: i for i in self.graph.islands()}
-        yield from rotate_to(d, here.origin_odom.theta)  # strategies start facing theta 0
+        d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
+        try:
+            yield from rotate_to(d, here.origin_odom.theta)  # strategies start facing theta 0
+        except RouteTimeoutError:
+            return None, here
         last = here
         for e in edges:
             d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
@@ -310,8 +314,23 @@ class Explorer:
             self._on_fix(fix)
 
     def _depart(self, here: _Here, exit_index: int) -> Generator[Step, None, bool]:
-        """Turn to the exit (through its gate); False when the way is closed (the robot back
-        at the origin)."""
+        """Turn to the exit (through its gate) within max_edge_time_s; False when the way is
+        closed or the time ran out (the robot back at the origin, as far as it can)."""
+        d = self._drive
+        assert d is not None
+        d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
+        try:
+            return (yield from self._depart_moves(here, exit_index))
+        except RouteTimeoutError:
+            d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
+            try:
+                yield from go_to(d, here.origin_odom)
+            except RouteTimeoutError:
+                pass
+            self._since_dock = MotionRecord(self._sense.odom)
+            return False
+
+    def _depart_moves(self, here: _Here, exit_index: int) -> Generator[Step, None, bool]:
         d = self._drive
         assert d is not None
         island = self.graph.get_island(here.island_id)
