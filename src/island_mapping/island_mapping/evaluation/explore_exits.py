@@ -26,7 +26,6 @@ from island_mapping.core.builder import (
     BuilderConfig,
     BuilderEvent,
     CommandMode,
-    EventKind,
     IslandBuilder,
     event_to_dict,
 )
@@ -173,12 +172,7 @@ def explore_by_exits(
         builder.set_strategy(follower.strategy())
         builder.on_scan(t, ranges, sonar.angles_rad)
         cmd = builder.command(t)
-        for e in cmd.events:
-            apply_items(graph, e)
-            d = event_to_dict(e)
-            tp = robot.true_pose
-            d["truth_pose"] = {"x": tp.x, "y": tp.y, "theta": tp.theta}
-            events.append(d)
+        _record(cmd.events, graph, robot.true_pose, events)
         explorer.on_events(cmd.events)
         explorer.on_strategy(follower.strategy())
         explorer.on_graph(graph)
@@ -219,6 +213,16 @@ def explore_by_exits(
                     dict(builder.island_origins_odom))
 
 
+def _record(new: tuple[BuilderEvent, ...], graph: TopoGraph, truth: Pose2D,
+            events: list[dict[str, Any]]) -> None:
+    """Apply the builder's new events to the map, and keep them with the true pose."""
+    for e in new:
+        apply_items(graph, e)
+        d = event_to_dict(e)
+        d["truth_pose"] = {"x": truth.x, "y": truth.y, "theta": truth.theta}
+        events.append(d)
+
+
 def _trace(trace: list[dict[str, Any]], explorer: Explorer, robot: SimRobot,
            requests: tuple[object, ...]) -> None:
     """Keep the explorer's status whenever it changes, and every request, with the truth."""
@@ -247,5 +251,3 @@ def _apply_requests(requests: tuple[object, ...], builder: IslandBuilder, graph:
             graph.apply_exit_update(r)
     return handed
 
-
-_ = EventKind
