@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import StrEnum
 
-from island_msgs_py.types import Edge, Island, Pose2D
+from island_msgs_py.types import Edge, ExitUpdate, Island, Pose2D
 
 from island_msgs_py import json_io
 
@@ -15,6 +15,7 @@ from island_msgs_py import json_io
 class CommandMode(StrEnum):
     FOLLOW = "follow"  # the hall follower drives
     DRIVE = "drive"  # the builder drives: publish (v, w)
+    IDLE = "idle"  # managed mode, waiting: another controller (the explorer) drives
 
 
 class DismissReason(StrEnum):
@@ -29,6 +30,8 @@ class EventKind(StrEnum):
     ATTEMPT_DISMISSED = "attempt_dismissed"
     HANDED_BACK = "handed_back"  # the robot is back at the origin facing theta 0
     ISLAND_REVISITED = "island_revisited"  # a known island recognised: no new island
+    HANDED_OVER = "handed_over"  # managed mode: the explorer handed the robot over
+    STOPPED = "stopped"  # managed mode: following stopped at the explorer's request
 
 
 @dataclass(frozen=True)
@@ -40,7 +43,8 @@ class BuilderEvent:
     max_i(R_i/T_i) so far; bound: E_min/epsilon at the attempt; partial: a dismissed star that
     did not do all four legs. island_revisited: revisited_island_id, island_pose (the robot in
     that island's frame when recognised [m, rad]), residual_m (RMS of the fit [m]) and, when it
-    was added or made cheaper, the edge from the previous island.
+    was added or made cheaper, the edge from the previous island. exit_updates: exits the
+    event's edge explored (managed mode), to apply after the island and the edge.
     """
 
     kind: EventKind
@@ -59,6 +63,7 @@ class BuilderEvent:
     revisited_island_id: int | None = None
     island_pose: Pose2D | None = None
     residual_m: float | None = None
+    exit_updates: tuple[ExitUpdate, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -98,4 +103,6 @@ def event_to_dict(e: BuilderEvent) -> dict[str, object]:
         d["island_pose"] = json_io.pose_to_dict(e.island_pose)
     if e.residual_m is not None:
         d["residual_m"] = e.residual_m
+    if e.exit_updates:
+        d["exit_updates"] = [json_io.exit_update_to_dict(u) for u in e.exit_updates]
     return d

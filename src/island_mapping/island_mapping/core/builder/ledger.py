@@ -62,6 +62,17 @@ class Ledger:
             return new
         return None
 
+    def edge(self, source: int, target: int) -> Edge | None:
+        """The edge source -> target, or None."""
+        return next((e for e in self.edges if (e.source, e.target) == (source, target)), None)
+
+    def replace_edge(self, edge: Edge) -> Edge:
+        """Put `edge` in place of the edge between the same islands (which must exist)."""
+        k = next(k for k, e in enumerate(self.edges) if (e.source, e.target) == (
+            edge.source, edge.target))
+        self.edges[k] = edge
+        return edge
+
     def add_island(self, island: Island, origin_odom: Pose2D, odom_cov: FloatArray,
                    edge: Edge | None, epsilon_m: float, heading_sigma_rad: float) -> None:
         """A new island with its origin at origin_odom (odometry frame; the odometry's

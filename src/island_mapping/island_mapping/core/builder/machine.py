@@ -24,12 +24,13 @@ from island_msgs_py.types import (
     Island,
     LineModel,
     Pose2D,
+    PrimitiveKind,
 )
 
 from island_mapping.core.builder import motion, star
 from island_mapping.core.builder.checks import localizes_back
 from island_mapping.core.builder.config import BuilderConfig, BuilderError
-from island_mapping.core.builder.diagnostics import Diagnostics, ProbeOutcome
+from island_mapping.core.builder.diagnostics import Diagnostics, ProbeOutcome, Refusal
 from island_mapping.core.builder.docking import Dock, dock_step
 from island_mapping.core.builder.epsilon import (
     EvaluateFn,
@@ -54,6 +55,17 @@ from island_mapping.core.builder.follow import (
     straight_behind_m,
 )
 from island_mapping.core.builder.geometry import concat, scan_points, to_frame
+from island_mapping.core.builder.hooks import (
+    APPROACH_M,
+    BuilderHooks,
+    Departure,
+    approach_path,
+    arrival_heading,
+    exit_evidence,
+    exit_updates,
+    facing_exit,
+    with_exits,
+)
 from island_mapping.core.builder.ledger import Ledger
 from island_mapping.core.builder.motion import STOP, LookPhase, Twist
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
@@ -67,6 +79,7 @@ class _State(StrEnum):
     RETURNING = "returning"  # back to the origin, facing theta 0, then hand back
     DOCKING = "docking"  # onto a recognised island's origin, then hand back
     PROBING = "probing"  # to an origin past the star's legs: look around there, verify it
+    IDLE = "idle"  # managed mode: at an island, the explorer drives (core.builder.hooks)
 
 
 class IslandBuilder:
@@ -75,14 +88,17 @@ class IslandBuilder:
     Call `on_odometry` for every odometry message, `on_scan` for every scan, `set_strategy`
     whenever the hall follower publishes its executed strategy, `on_ground_truth` (evaluation
     only: stamped on islands as origin_truth), and `command(t)` once per scan. `fit` and
-    `evaluate` replace the line fit and the model evaluation (tests).
+    `evaluate` replace the line fit and the model evaluation (tests); `hooks` are an
+    explorer's (managed mode, exits, a revisit gate: `core.builder.hooks`).
     """
 
     def __init__(
         self, config: BuilderConfig | None = None, fit: FitFn | None = None,
-        evaluate: EvaluateFn | None = None,
+        evaluate: EvaluateFn | None = None, hooks: BuilderHooks | None = None,
     ) -> None:
         self.config = config if config is not None else BuilderConfig()
+        self.hooks = hooks if hooks is not None else BuilderHooks()
+        self._departure: Departure | None = None
         self.measures = Measures.of(self.config, fit, evaluate)
         self.diagnostics = Diagnostics()
         self.recognizer = Recognizer(self.config, self.diagnostics)
@@ -115,8 +131,11 @@ class IslandBuilder:
         self._truth = pose
 
     def set_strategy(self, strategy: ControlStrategy) -> None:
-        """The hall follower's strategy executed since its last reset (at the last island)."""
-        self._strategy = strategy
+        """The hall follower's strategy executed since its last reset (at the last island, or
+        at the explorer's handover: then it follows the handover's prefix)."""
+        dep = self._departure
+        self._strategy = strategy if dep is None else ControlStrategy(
+            dep.prefix.steps + strategy.steps)
 
     def on_scan(self, t_s: float, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike) -> None:
         """A sonar scan: ranges from the robot centre [m] (inf = no echo) at robot-frame angles."""
@@ -135,8 +154,61 @@ class IslandBuilder:
             if look.phase is LookPhase.LOOK:
                 look.points.append(pts)
             return
+        if self._state is _State.IDLE:
+            return
         self._history.add(self._path_m, pts, near_pts, self._state is _State.FOLLOWING,
                           self.config)
+
+    # ----- managed mode: the explorer's inputs (core.builder.hooks) -----
+
+    def on_docked(self, island_id: int, origin_odom: Pose2D) -> None:
+        """The robot is docked at island island_id's origin, which lies at origin_odom in the
+        odometry frame: it is the last island, and epsilon restarts there. Only while IDLE."""
+        island = self._managed_island("on_docked", island_id)
+        self.recognizer.remember(island.id, origin_odom, self._track.cov.copy())
+        self._track.rel.reset()
+        self.ledger.handed_back(island, self._path_m)
+        self._strategy = ControlStrategy(())
+
+    def handover(self, island_id: int, exit_index: int | None, prefix: ControlStrategy) -> None:
+        """Leave island island_id (the last docked) by exit exit_index (None: by no known exit)
+        after driving `prefix` from its origin: the follower drives, the builder decides."""
+        island = self._managed_island("handover", island_id)
+        if self.ledger.last_island is None or self.ledger.last_island.id != island.id:
+            raise BuilderError(f"handover: the robot is not docked at island {island_id}")
+        if exit_index is not None and all(e.index != exit_index for e in island.exits):
+            raise BuilderError(f"handover: island {island_id} has no exit {exit_index} (its "
+                               f"exits: {[e.index for e in island.exits]})")
+        self._departure = Departure(island.id, exit_index, prefix)
+        self._strategy = prefix
+        self._path_m += sum(s.metres for s in prefix.steps if s.kind is PrimitiveKind.GO)
+        self._gate.retry_at_path_m = self._path_m
+        self._history.quick.clear()
+        self._history.revisit.clear()
+        self._state = _State.FOLLOWING
+        self._emit(EventKind.HANDED_OVER, anchor_odom=self._odom)
+
+    def abort(self) -> bool:
+        """Take the robot back for the explorer (managed mode): from FOLLOWING to IDLE (event
+        STOPPED). False while the builder is busy (a star, a dock): ask again later."""
+        if not self.hooks.managed or self._state not in (_State.FOLLOWING, _State.IDLE):
+            return False
+        if self._state is _State.FOLLOWING:
+            self._emit(EventKind.STOPPED)
+        self._state = _State.IDLE
+        self._departure = None
+        return True
+
+    def _managed_island(self, what: str, island_id: int) -> Island:
+        if not self.hooks.managed:
+            raise BuilderError(f"{what}: the builder is not in managed mode")
+        if self._state is not _State.IDLE or self._odom is None:
+            raise BuilderError(f"{what}: only while idle (the builder is {self._state.value})")
+        found = [i for i in self.ledger.islands if i.id == island_id]
+        if not found:
+            raise BuilderError(f"{what}: unknown island {island_id} (the builder has "
+                               f"{len(self.ledger.islands)})")
+        return found[0]
 
     # ----- queries -----
 
@@ -233,7 +305,8 @@ class IslandBuilder:
             v, w = self._return_step()
         if self._state is _State.DOCKING:
             v, w = self._dock_step()
-        mode = CommandMode.FOLLOW if self._state is _State.FOLLOWING else CommandMode.DRIVE
+        mode = (CommandMode.FOLLOW if self._state is _State.FOLLOWING else
+                CommandMode.IDLE if self._state is _State.IDLE else CommandMode.DRIVE)
         events, self._events = tuple(self._events), []
         return BuilderCommand(mode, v, w, events)
 
@@ -305,7 +378,8 @@ class IslandBuilder:
         if not att.first:
             rec = None if self._odom is None else self.recognizer.recognize_star(
                 att.near_points, att.anchor, self._odom, self.snapshot(), self.islands)
-            if rec is not None:  # the star is at a known island: a revisit, not a new one
+            # the star is at a known island: a revisit, not a new one
+            if rec is not None and self._gate_allows(rec, star=True):
                 assert self._odom is not None
                 att.outcome = EventKind.ISLAND_REVISITED
                 self._attempt, self._track.star = None, None
@@ -335,13 +409,21 @@ class IslandBuilder:
             model = LineModel(model.segments - np.array([shift.x, shift.y] * 2))
             att.best = max(att.best, r_peak)
         origin = att.anchor.compose(shift)
+        evidence = exit_evidence(att, model, shift, approach_path(self._strategy, APPROACH_M))
+        find = self.hooks.find_exits
         island = Island(
             id=len(book.islands), model=model, model_type=att.best_type, r=float(att.best),
             built_at_s=self._t,
             origin_truth=None if att.anchor_truth is None else att.anchor_truth.compose(shift),
+            exits=() if find is None else find(*evidence),
         )
-        edge = book.edge_to(island.id, self._strategy, self._path_m,
-                            Pose2D(-shift.x, -shift.y, 0.0), att.epsilon_m)
+        arrival = None if evidence[3] is None else facing_exit(
+            island, evidence[3], self.hooks.arrival_match_deg)
+        edge = with_exits(book.edge_to(island.id, self._strategy, self._path_m,
+                                       Pose2D(-shift.x, -shift.y, 0.0), att.epsilon_m),
+                          self._departure, None if arrival is None else arrival.index)
+        updates = exit_updates(edge, None if edge is None else (edge.source, edge.target),
+                               self._departure, None if arrival is None else arrival.index)
         book.add_island(island, origin, att.anchor_cov, edge, att.epsilon_m,
                         self._track.rel.heading_sigma_rad)
         if self._track.star is not None:  # epsilon restarts from the island origin
@@ -350,7 +432,7 @@ class IslandBuilder:
         att.anchor = origin  # the robot returns to the island origin before it is handed back
         self._emit(EventKind.ISLAND_ACCEPTED, epsilon_m=att.epsilon_m, anchor_odom=origin,
                    measure=att.best, bound=att.bound, legs_m=tuple(att.legs_done),
-                   island=island, edge=edge)
+                   island=island, edge=edge, exit_updates=updates)
         self._state = _State.RETURNING
 
     def _probe_step(self) -> Twist:
@@ -405,20 +487,30 @@ class IslandBuilder:
         self.ledger.handed_back(island, self._path_m)
         if island is not None:
             self._strategy = ControlStrategy(())
+            self._departure = None
         self._emit(EventKind.HANDED_BACK, anchor_odom=origin,
                    accepted_island_id=None if island is None else island.id)
         self._history.quick.clear()
-        self._state = _State.FOLLOWING
+        managed_stop = self.hooks.managed and island is not None
+        self._state = _State.IDLE if managed_stop else _State.FOLLOWING
 
     # ----- revisits -----
 
     def _try_revisit(self) -> bool:
         """Recognise a known island here; on success the robot docks onto its origin."""
         rec = self.recognize()
-        if rec is None:
+        if rec is None or not self._gate_allows(rec, star=False):
             return False
         self._revisit(rec)
         return True
+
+    def _gate_allows(self, rec: Recognition, star: bool) -> bool:
+        """The explorer's revisit gate (topological evidence) agrees, or there is none."""
+        gate = self.hooks.accept_revisit
+        if gate is None or gate(rec, self.snapshot(), self.ledger.island(rec.island_id), star):
+            return True
+        self.diagnostics.refuse(Refusal.TOPOLOGY)
+        return False
 
     def _revisit(self, rec: Recognition, legs_m: tuple[tuple[float, float], ...] = (),
                  strategy_end: Pose2D | None = None) -> None:
@@ -431,13 +523,26 @@ class IslandBuilder:
         assert self._odom is not None
         island = self.ledger.island(rec.island_id)
         origin_odom = self._odom.compose(rec.pose.inverse())  # the island origin, odometry
+        prev = self.ledger.last_island
         edge = self.ledger.revisit(
             island.id, self._strategy, self._path_m,
             rec.pose if strategy_end is None else strategy_end, self.epsilon_m,
             self.config.revisit.strategy_min_go_m, origin_odom, self._track.rel.heading_sigma_rad)
+        came = arrival_heading(approach_path(self._strategy, APPROACH_M),
+                               rec.pose if strategy_end is None else strategy_end)
+        arrival = None if came is None else facing_exit(island, came,
+                                                        self.hooks.arrival_match_deg)
+        index = None if arrival is None else arrival.index
+        annotated = with_exits(edge, self._departure, index)
+        if annotated is not None:
+            edge = self.ledger.replace_edge(annotated)
+        known = None if prev is None else self.ledger.edge(prev.id, island.id)
         self._emit(EventKind.ISLAND_REVISITED, anchor_odom=origin_odom,
                    revisited_island_id=island.id, island_pose=rec.pose,
-                   residual_m=rec.residual_m, edge=edge, legs_m=legs_m)
+                   residual_m=rec.residual_m, edge=edge, legs_m=legs_m,
+                   exit_updates=exit_updates(
+                       known, None if known is None else (known.source, known.target),
+                       self._departure, index))
         self._dock = Dock(island=island, target=origin_odom,
                           looks_left=self.config.revisit.dock_looks)
         self._state = _State.DOCKING

@@ -1,0 +1,46 @@
+"""Exploration by the map (issue 16): exits, the explorer's mission, loop closure.
+
+Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public API:
+
+- `ExitConfig`, `ExplorerConfig`, `ExploreError` (config);
+- `ExitEvidence`, `find_exits`, `arrival_exit`, `gate`, `free_lanes` (exits: where free space
+  leads away from an island, in its frame);
+- `Target`, `nearest_unexplored`, `route_edges`, `unexplored_count` (planner);
+- `plan_departure`, `DeparturePlan` (departure through an exit's gate);
+- `Explorer`, `ExplorerCommand`, `ExplorerState`, `ExplorerStatus`, `Docked`, `Handover`,
+  `Abort` (mission: one step per scan);
+- `explorer_hooks` (the builder hooks an explorer installs).
+"""
+
+from island_mapping.core.explore.config import ExitConfig, ExploreError, ExplorerConfig
+from island_mapping.core.explore.departure import DeparturePlan, plan_departure
+from island_mapping.core.explore.exits import (
+    ExitEvidence,
+    arrival_exit,
+    find_exits,
+    free_lanes,
+    gate,
+)
+from island_mapping.core.explore.hooks import explorer_hooks
+from island_mapping.core.explore.mission import (
+    Abort,
+    Docked,
+    Explorer,
+    ExplorerCommand,
+    ExplorerState,
+    ExplorerStatus,
+    Handover,
+)
+from island_mapping.core.explore.planner import (
+    Target,
+    nearest_unexplored,
+    route_edges,
+    unexplored_count,
+)
+
+__all__ = [
+    "Abort", "DeparturePlan", "Docked", "ExitConfig", "ExitEvidence", "ExploreError",
+    "Explorer", "ExplorerCommand", "ExplorerConfig", "ExplorerState", "ExplorerStatus",
+    "Handover", "Target", "arrival_exit", "explorer_hooks", "find_exits", "free_lanes", "gate",
+    "nearest_unexplored", "plan_departure", "route_edges", "unexplored_count",
+]

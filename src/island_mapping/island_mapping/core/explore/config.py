@@ -1,0 +1,164 @@
+"""Configuration of exploration by the map: exits, the explorer's mission, loop closure.
+
+Frozen dataclasses, the single source of defaults; every field's help says what it does.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+
+
+class ExploreError(ValueError):
+    """Bad input to exploration (the message names what was wrong)."""
+
+
+def _check_numbers(owner: object, strict: tuple[str, ...], loose: tuple[str, ...]) -> None:
+    """Named fields must be finite numbers, > 0 (strict) or >= 0 (loose)."""
+    name = type(owner).__name__
+    for f in strict + loose:
+        v = getattr(owner, f)
+        ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+        if not ok or v < 0 or (f in strict and v == 0):
+            bound = "> 0" if f in strict else ">= 0"
+            raise ExploreError(f"{name}.{f}: expected a finite number {bound}, got {v!r}")
+
+
+@dataclass(frozen=True)
+class ExitConfig:
+    """Where free space leads away from an island (`core.explore.exits`)."""
+
+    heading_step_deg: float = field(
+        default=15.0,
+        metadata={"help": "lanes are tried along the island's axes and every this many degrees "
+                          "[deg]"},
+    )
+    lane_offset_m: float = field(
+        default=1.5,
+        metadata={"help": "a lane may leave the origin's line this far to either side (a side "
+                          "corridor or a door beside the origin) [m]"},
+    )
+    clearance_m: float = field(
+        default=0.32,
+        metadata={"help": "a lane is free while it keeps this far from the model's walls and "
+                          "from echo points (the robot's radius plus a margin) [m]"},
+    )
+    reach_m: float = field(
+        default=3.0,
+        metadata={"help": "free space leads away along a lane that stays free this far [m]"},
+    )
+    entry_m: float = field(
+        default=1.2,
+        metadata={"help": "an exit's heading points from the origin to this far along its "
+                          "lane (into the opening) [m]"},
+    )
+    evidence_range_m: float = field(
+        default=5.0,
+        metadata={"help": "echo points farther than this from the origin are not used (wide "
+                          "sonar cones) [m]"},
+    )
+    min_points: int = field(
+        default=2,
+        metadata={"help": "echo points within clearance_m of a lane point that block it [-]"},
+    )
+    driven_clearance_m: float = field(
+        default=0.3,
+        metadata={"help": "echo points this close to a path the robot drove are noise (it drove "
+                          "there) and are ignored, and lane points this close are free [m]"},
+    )
+    merge_deg: float = field(
+        default=30.0,
+        metadata={"help": "lanes whose headings lie within this of a kept exit's are that exit "
+                          "[deg]"},
+    )
+    arrival_match_deg: float = field(
+        default=45.0,
+        metadata={"help": "the exit within this of the direction the robot came from is the "
+                          "arrival exit (explored by the edge that arrived) [deg]"},
+    )
+    min_width_m: float = field(
+        default=0.6, metadata={"help": "narrowest opening reported as an exit [m]"}
+    )
+
+    def __post_init__(self) -> None:
+        _check_numbers(self, ("heading_step_deg", "clearance_m", "reach_m", "evidence_range_m",
+                              "merge_deg", "min_width_m", "entry_m"),
+                       ("driven_clearance_m", "arrival_match_deg", "lane_offset_m"))
+        if isinstance(self.min_points, bool) or not isinstance(self.min_points, int) or (
+            self.min_points < 1
+        ):
+            raise ExploreError(f"ExitConfig.min_points: expected an int >= 1, got "
+                               f"{self.min_points!r}")
+
+
+@dataclass(frozen=True)
+class ExplorerConfig:
+    """The explorer's mission (`core.explore.mission`)."""
+
+    exit_cap_s: float = field(
+        default=300.0,
+        metadata={"help": "sim time the builder may spend exploring one exit before the explorer "
+                          "takes the robot back to the island it left and marks the exit "
+                          "blocked [s]"},
+    )
+    depart_min_free_m: float = field(
+        default=1.2,
+        metadata={"help": "an exit whose way ahead (the sonar, facing it) is free less than "
+                          "this is blocked without driving it [m]"},
+    )
+    lane_snap_m: float = field(
+        default=0.2,
+        metadata={"help": "a departure lane that leaves the origin's line less than this to the "
+                          "side is driven from the origin itself [m]"},
+    )
+    look_buffer_s: float = field(
+        default=30.0,
+        metadata={"help": "the explorer keeps the echoes of this last stretch of time to plan "
+                          "a departure [s]"},
+    )
+    door_max_width_m: float = field(
+        default=1.6,
+        metadata={"help": "exits narrower than this are doorways: the robot drives through "
+                          "before the hall follower takes over [m]"},
+    )
+    door_through_m: float = field(
+        default=1.5,
+        metadata={"help": "how far along a doorway's lane the robot drives before the hall "
+                          "follower takes over [m]"},
+    )
+    map_wait_s: float = field(
+        default=5.0,
+        metadata={"help": "at an island, the explorer waits at most this for the map to show "
+                          "it and the exits its arrival explored [s]"},
+    )
+    retries_per_exit: int = field(
+        default=1,
+        metadata={"help": "times an exit is tried again after a departure that got lost "
+                          "before it is marked blocked [-]"},
+    )
+    revisit_near_m: float = field(
+        default=2.5,
+        metadata={"help": "a recognised island is docked onto only when the robot is this "
+                          "close to its origin (at its place, not seeing it from the next "
+                          "one) [m]"},
+    )
+    exit: ExitConfig = field(
+        default_factory=ExitConfig, metadata={"help": "how exits are found at an island"}
+    )
+
+    def __post_init__(self) -> None:
+        _check_numbers(self, ("exit_cap_s", "door_max_width_m", "door_through_m", "map_wait_s",
+                              "look_buffer_s", "revisit_near_m"),
+                       ("depart_min_free_m", "lane_snap_m"))
+        if isinstance(self.retries_per_exit, bool) or not isinstance(self.retries_per_exit, int) \
+                or self.retries_per_exit < 0:
+            raise ExploreError("ExplorerConfig.retries_per_exit: expected an int >= 0, got "
+                               f"{self.retries_per_exit!r}")
+
+
+def help_of(cls: type, name: str) -> str:
+    """The help text of field `name` of a config dataclass (for docs and CLI help)."""
+    for f in fields(cls):
+        if f.name == name:
+            return str(f.metadata.get("help", ""))
+    raise ExploreError(f"{cls.__name__} has no field {name!r}")

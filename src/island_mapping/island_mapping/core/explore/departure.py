@@ -1,0 +1,69 @@
+"""How the robot leaves an island by an exit: along a free lane planned on what it sees now.
+
+At the island's origin the explorer has just looked around (docking, or the builder's star), so
+its recent echoes and the island's line model say where the free lanes are (`exits.free_lanes`,
+in the island frame). The lane whose entry heading lies nearest the exit's heading (within
+merge_deg) is driven: sideways to where it leaves the origin's line (when that is more than
+`lane_snap_m` off), then along it; a lane narrower than `door_max_width_m` (a doorway) is driven
+`door_through_m` into before the hall follower takes over. No such lane: the robot turns to the
+exit's heading only. Everything in the island frame [m, rad].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from island_msgs_py.types import Exit, FloatArray, LineModel, Pose2D, wrap_angle
+
+from island_mapping.core.explore.config import ExplorerConfig
+from island_mapping.core.explore.exits import ExitEvidence, Lane, free_lanes
+
+
+@dataclass(frozen=True)
+class DeparturePlan:
+    """Drive to each waypoint, turn to heading_rad, then (a doorway) drive to `through`;
+    `lane` is the lane chosen (None: the exit's heading alone)."""
+
+    waypoints: tuple[Pose2D, ...]
+    heading_rad: float
+    through: Pose2D | None = None
+    lane: Lane | None = None
+
+
+def choose_lane(lanes: list[Lane], ex: Exit, cfg: ExplorerConfig) -> Lane | None:
+    """The lane whose entry heading is nearest the exit's (within merge_deg), the wider one
+    on a tie."""
+    best: tuple[float, float, Lane] | None = None
+    for lane in lanes:
+        if lane.width_m < cfg.exit.min_width_m:
+            continue
+        ex_, ey = lane.entry(cfg.exit.entry_m)
+        off = abs(wrap_angle(math.atan2(ey, ex_) - ex.heading_rad))
+        if off > math.radians(cfg.exit.merge_deg):
+            continue
+        key = (round(off, 3), -lane.width_m)
+        if best is None or key < best[:2]:
+            best = (key[0], key[1], lane)
+    return None if best is None else best[2]
+
+
+def plan_departure(model: LineModel, ex: Exit, points: FloatArray, cfg: ExplorerConfig
+                   ) -> DeparturePlan:
+    """The departure by exit `ex` of an island whose model is `model`, with the echoes seen
+    lately `points` (M, 2) in the island frame (module docstring)."""
+    lanes = free_lanes(ExitEvidence(model.segments, points, np.zeros((0, 4))), cfg.exit)
+    lane = choose_lane(lanes, ex, cfg)
+    if lane is None:
+        return DeparturePlan((), ex.heading_rad)
+    h = lane.heading_rad
+    sx, sy = lane.entry(0.0)
+    waypoints = () if abs(lane.offset_m) <= cfg.lane_snap_m else (Pose2D(sx, sy, h),)
+    through = None
+    if lane.width_m <= cfg.door_max_width_m:
+        d = cfg.door_through_m
+        through = Pose2D(sx + d * math.cos(h), sy + d * math.sin(h), h)
+    return DeparturePlan(waypoints, h, through, lane)
+
+

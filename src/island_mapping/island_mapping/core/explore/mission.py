@@ -1,0 +1,432 @@
+"""The explorer: exploration by the map (issue 16), a mission fed once per scan.
+
+At an island the explorer picks the nearest island with an unexplored exit (`planner`), drives
+there by the map (`core.route`: each edge's strategy, then localize and dock), turns to the exit
+(through its gate when the island's model shows one: a doorway, a side corridor's mouth) and
+hands the robot over to the builder (`core.builder.hooks`): the hall follower drives, the builder
+decides, until it builds a new island or docks onto a known one and hands back. An exit whose
+way is closed, or whose exploration runs past `exit_cap_s`, is marked blocked (after the robot
+has been driven back to the island it left). DONE when no unexplored exit is left.
+
+One `step(sense)` per scan returns who answers that scan (the explorer with (v, w), or the
+builder side: the builder's star or the hall follower) and the requests for the builder and
+the map (`Docked`, `Handover`, `Abort`, blocked exits as `ExitUpdate`).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable, Generator, Iterable
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+from island_msgs_py.geometry import to_frame
+from island_msgs_py.hall_perception import HallPerceptionConfig, perceive
+from island_msgs_py.types import (
+    ControlStrategy,
+    Exit,
+    ExitState,
+    ExitUpdate,
+    FloatArray,
+    Island,
+    Pose2D,
+    wrap_angle,
+)
+
+from island_mapping.core.builder import BuilderEvent, EventKind
+from island_mapping.core.explore.config import ExploreError, ExplorerConfig
+from island_mapping.core.explore.departure import plan_departure
+from island_mapping.core.explore.planner import (
+    Target,
+    nearest_unexplored,
+    route_edges,
+    unexplored_count,
+)
+from island_mapping.core.explore.record import MotionRecord
+from island_mapping.core.graph import TopoGraph, reverse_strategy
+from island_mapping.core.route import (
+    Command,
+    Drive,
+    Fix,
+    NavigateConfig,
+    RouteTimeoutError,
+    Sense,
+    execute_strategy,
+    go_to,
+    localize_and_dock,
+    rotate_to,
+)
+
+STOP: Command = (0.0, 0.0)
+
+Step = Command | None
+"""What the mission yields per scan: a command the explorer answers with, or None: the
+builder side (the builder's own driving or the hall follower) answers."""
+
+
+class ExplorerState(StrEnum):
+    WAITING = "waiting"  # for the builder's first island
+    CHOOSING = "choosing"  # at an island: the next exit (waits for the map to hold the island)
+    NAVIGATING = "navigating"  # by the map to the island of the chosen exit
+    DEPARTING = "departing"  # turning to the exit, through its gate
+    HANDED_OVER = "handed_over"  # the builder and the hall follower drive
+    RETURNING = "returning"  # back to the island left (the exit took too long)
+    LOST = "lost"  # an arrival did not localize: the builder takes over from the last island
+    DONE = "done"
+
+
+@dataclass(frozen=True)
+class Docked:
+    """Tell the builder: the robot is docked at island_id's origin, at origin_odom."""
+
+    island_id: int
+    origin_odom: Pose2D
+
+
+@dataclass(frozen=True)
+class Handover:
+    """Tell the builder: explore from island_id by exit exit_index, having driven prefix."""
+
+    island_id: int
+    exit_index: int | None
+    prefix: ControlStrategy
+
+
+@dataclass(frozen=True)
+class Abort:
+    """Ask the builder to stop following (the explorer takes the robot back)."""
+
+
+Request = Docked | Handover | Abort | ExitUpdate
+
+
+@dataclass(frozen=True)
+class ExplorerCommand:
+    """Who answers this scan: the explorer (drive=True, with v [m/s], w [rad/s]) or the builder
+    side; and the requests for the builder and the map made during this step."""
+
+    drive: bool
+    v_mps: float = 0.0
+    w_radps: float = 0.0
+    requests: tuple[Request, ...] = ()
+
+
+@dataclass(frozen=True)
+class ExplorerStatus:
+    """What the explorer is doing (for `/explorer/status`)."""
+
+    state: ExplorerState
+    island_id: int | None
+    target: tuple[int, int] | None
+    exits_left: int
+    done: bool
+    reason: str
+
+    def to_dict(self) -> dict[str, object]:
+        return {"state": self.state.value, "island": self.island_id,
+                "target": None if self.target is None else list(self.target),
+                "exits_left": self.exits_left, "done": self.done, "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class _Here:
+    """Docked at island_id, whose origin is at origin_odom (odometry frame)."""
+
+    island_id: int
+    origin_odom: Pose2D
+
+
+class Explorer:
+    """The mission (module docstring). Feed `on_graph` (the latest map), `on_events` (the
+    builder's events), `on_strategy` (the hall follower's record), then `step(sense)` once per
+    scan. `on_fix` sees every arrival's localization (evaluation compares it with the truth)."""
+
+    def __init__(self, cfg: ExplorerConfig | None = None, nav: NavigateConfig | None = None,
+                 perception: HallPerceptionConfig | None = None, hall_width_m: float = 2.0,
+                 on_fix: Callable[[Fix], None] | None = None) -> None:
+        self.cfg = cfg if cfg is not None else ExplorerConfig()
+        self.nav = nav if nav is not None else NavigateConfig()
+        self.perception = perception if perception is not None else HallPerceptionConfig()
+        self.hall_width_m = hall_width_m
+        self._on_fix = on_fix
+        self.graph = TopoGraph()
+        self._events: list[BuilderEvent] = []
+        self._awaited: list[ExitUpdate] = []
+        self._follower = ControlStrategy(())
+        self._requests: list[Request] = []
+        self._drive: Drive | None = None
+        self._gen: Generator[Step, None, None] | None = None
+        self._since_dock = MotionRecord(Pose2D(0.0, 0.0, 0.0))
+        self._seen: deque[tuple[float, FloatArray]] = deque()  # (t [s], echoes, odometry frame)
+        self._drove = False  # the explorer answered the last scan
+        self._blocked: set[tuple[int, int]] = set()  # marked by us, maybe not yet in the map
+        self.state = ExplorerState.WAITING
+        self._here: int | None = None
+        self._target: tuple[int, int] | None = None
+        self.reason = ""
+        self.counts = {"exits_explored": 0, "exits_blocked": 0, "lost": 0, "returns": 0,
+                       "arrivals": 0, "untrusted_arrivals": 0}
+
+    # ----- inputs -----
+
+    def on_graph(self, graph: TopoGraph) -> None:
+        """The latest map (read only)."""
+        self.graph = graph
+
+    def on_events(self, events: Iterable[BuilderEvent]) -> None:
+        """The builder's events since the last step."""
+        self._events.extend(events)
+
+    def on_strategy(self, strategy: ControlStrategy) -> None:
+        """The hall follower's record since its last reset (at the handover)."""
+        self._follower = strategy
+
+    @property
+    def done(self) -> bool:
+        return self.state is ExplorerState.DONE
+
+    @property
+    def status(self) -> ExplorerStatus:
+        return ExplorerStatus(self.state, self._here, self._target,
+                              unexplored_count(self.graph), self.done, self.reason)
+
+    def step(self, sense: Sense) -> ExplorerCommand:
+        """One scan: who answers it, and the requests made."""
+        if self._drive is None:
+            self._drive = Drive(sense, self.nav, self.perception, self.hall_width_m)
+            self._gen = self._mission()
+        self._drive.sense = sense
+        self._since_dock.update(sense.odom, counted=self._drove)
+        self._seen.append((sense.t_s, sense.points_odom()))
+        while self._seen and self._seen[0][0] < sense.t_s - self.cfg.look_buffer_s:
+            self._seen.popleft()
+        assert self._gen is not None
+        out = next(self._gen)
+        self._events.clear()
+        requests, self._requests = tuple(self._requests), []
+        self._drove = out is not None
+        if out is None:
+            return ExplorerCommand(False, requests=requests)
+        return ExplorerCommand(True, out[0], out[1], requests)
+
+    # ----- the mission -----
+
+    @property
+    def _sense(self) -> Sense:
+        assert self._drive is not None
+        return self._drive.sense
+
+    def _mission(self) -> Generator[Step, None, None]:
+        here = yield from self._await_hand_back()
+        while True:
+            self.state = ExplorerState.CHOOSING
+            self._here = here.island_id
+            yield from self._await_map(here.island_id)
+            target = nearest_unexplored(self.graph, here.island_id, self._blocked)
+            if target is None:
+                self.state, self.reason = ExplorerState.DONE, "no unexplored exit left"
+                self._target = None
+                while True:
+                    yield STOP
+            self._target = (target.island_id, target.exit_index)
+            here = yield from self._go_and_explore(here, target)
+
+    def _go_and_explore(self, here: _Here, target: Target) -> Generator[Step, None, _Here]:
+        """Drive to the target's island, depart by its exit, let the builder explore; where
+        the robot is docked afterwards."""
+        if target.island_id != here.island_id:
+            self.state = ExplorerState.NAVIGATING
+            arrived, last = yield from self._navigate(here, target)
+            if arrived is None:
+                return (yield from self._lost(last))
+            here = arrived
+        self.state = ExplorerState.DEPARTING
+        ok = yield from self._depart(here, target.exit_index)
+        if not ok:
+            self._mark_blocked(here.island_id, target.exit_index)
+            return here
+        self._requests.append(Handover(here.island_id, target.exit_index,
+                                       self._since_dock.strategy()))
+        self.state = ExplorerState.HANDED_OVER
+        return (yield from self._handed_over(here, target.exit_index))
+
+    def _await_hand_back(self) -> Generator[Step, None, _Here]:
+        """Let the builder side drive until it hands back at an island (island 0)."""
+        while True:
+            for e in self._events:
+                if e.kind is EventKind.HANDED_BACK and e.accepted_island_id is not None:
+                    self._awaited.extend(_updates_of(self._events))
+                    return self._docked_by_builder(e)
+            yield None
+
+    def _await_map(self, island_id: int) -> Generator[Step, None, None]:
+        """Hold still until the map holds the island and the exits the builder's last edge
+        explored (the map may lag the builder's events), at most map_wait_s."""
+        t0 = self._sense.t_s
+        while self._sense.t_s - t0 <= self.cfg.map_wait_s and not self._map_has(island_id):
+            yield STOP
+        self._awaited.clear()
+
+    def _map_has(self, island_id: int) -> bool:
+        if island_id not in self.graph:
+            return False
+        for u in self._awaited:
+            if u.island not in self.graph:
+                return False
+            if all(e.index != u.index or e.state is not u.state
+                   for e in self.graph.get_island(u.island).exits):
+                return False
+        return True
+
+    def _navigate(self, here: _Here, target: Target
+                  ) -> Generator[Step, None, tuple[_Here | None, _Here]]:
+        """Follow the route by the map; (where docked at the target or None, the last island
+        docked at)."""
+        d = self._drive
+        assert d is not None
+        edges = route_edges(self.graph, target.route)
+        islands = {i.id: i for i in self.graph.islands()}
+        d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
+        try:
+            yield from rotate_to(d, here.origin_odom.theta)  # strategies start facing theta 0
+        except RouteTimeoutError:
+            return None, here
+        last = here
+        for e in edges:
+            d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
+            try:
+                yield from execute_strategy(d, e.strategy)
+                fix = yield from localize_and_dock(d, islands[e.target], Pose2D(0.0, 0.0, 0.0),
+                                                   self._fixed)
+            except RouteTimeoutError:
+                return None, last
+            if not fix.trusted:
+                return None, last
+            last = self._dock(e.target)
+        return last, last
+
+    def _fixed(self, fix: Fix) -> None:
+        self.counts["arrivals"] += 1
+        if not fix.trusted:
+            self.counts["untrusted_arrivals"] += 1
+        if self._on_fix is not None:
+            self._on_fix(fix)
+
+    def _depart(self, here: _Here, exit_index: int) -> Generator[Step, None, bool]:
+        """Turn to the exit (through its gate) within max_edge_time_s; False when the way is
+        closed or the time ran out (the robot back at the origin, as far as it can)."""
+        d = self._drive
+        assert d is not None
+        d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
+        try:
+            return (yield from self._depart_moves(here, exit_index))
+        except RouteTimeoutError:
+            d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
+            try:
+                yield from go_to(d, here.origin_odom)
+            except RouteTimeoutError:
+                pass
+            self._since_dock = MotionRecord(self._sense.odom)
+            return False
+
+    def _depart_moves(self, here: _Here, exit_index: int) -> Generator[Step, None, bool]:
+        d = self._drive
+        assert d is not None
+        island = self.graph.get_island(here.island_id)
+        seen = np.concatenate([p for _, p in self._seen]) if self._seen else np.zeros((0, 2))
+        plan = plan_departure(island.model, _exit(island, exit_index),
+                              to_frame(seen, here.origin_odom), self.cfg)
+        for p in plan.waypoints:
+            yield from go_to(d, here.origin_odom.compose(p))
+        yield from rotate_to(d, wrap_angle(here.origin_odom.theta + plan.heading_rad))
+        if perceive(self._sense.ranges_m, self._sense.angles_rad,
+                    self.perception).front_m < self.cfg.depart_min_free_m:
+            yield from go_to(d, here.origin_odom)
+            self._since_dock = MotionRecord(self._sense.odom)
+            return False
+        if plan.through is not None:
+            yield from go_to(d, here.origin_odom.compose(plan.through))
+        return True
+
+    def _handed_over(self, here: _Here, exit_index: int | None
+                     ) -> Generator[Step, None, _Here]:
+        """The builder side drives until it hands back at an island; past exit_cap_s the
+        explorer asks it to stop and drives the robot back to `here`, and the exit is blocked.
+        exit_index None: leaving after getting lost (nothing to block)."""
+        self._follower = ControlStrategy(())
+        t0 = self._sense.t_s
+        while True:
+            for e in self._events:
+                if e.kind is EventKind.HANDED_BACK and e.accepted_island_id is not None:
+                    if exit_index is not None and e.accepted_island_id == here.island_id:
+                        self._mark_blocked(here.island_id, exit_index)  # back: nothing new
+                    elif exit_index is not None:
+                        self.counts["exits_explored"] += 1
+                    self._awaited.extend(_updates_of(self._events))
+                    return self._docked_by_builder(e)
+                if e.kind is EventKind.STOPPED:
+                    return (yield from self._return(here, exit_index))
+            if self._sense.t_s - t0 > self.cfg.exit_cap_s:
+                self._requests.append(Abort())
+            yield None
+
+    def _docked_by_builder(self, e: BuilderEvent) -> _Here:
+        assert e.accepted_island_id is not None
+        origin = e.anchor_odom if e.anchor_odom is not None else e.odom_pose
+        self._since_dock = MotionRecord(self._sense.odom)
+        return _Here(e.accepted_island_id, origin)
+
+    def _return(self, here: _Here, exit_index: int | None) -> Generator[Step, None, _Here]:
+        """Back to the island left, by the reversed record of the way out."""
+        self.state = ExplorerState.RETURNING
+        self.counts["returns"] += 1
+        d = self._drive
+        assert d is not None
+        way = ControlStrategy(self._since_dock.strategy().steps + self._follower.steps)
+        d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
+        island = self.graph.get_island(here.island_id)
+        try:
+            yield from execute_strategy(d, reverse_strategy(way))
+            fix = yield from localize_and_dock(d, island, Pose2D(0.0, 0.0, 0.0), self._fixed)
+        except RouteTimeoutError:
+            fix = None
+        if exit_index is not None:
+            self._mark_blocked(here.island_id, exit_index)
+        if fix is None or not fix.trusted:
+            return (yield from self._lost(here))
+        return self._dock(here.island_id)
+
+    def _dock(self, island_id: int) -> _Here:
+        """Docked at island_id's origin by the explorer's own localization: tell the builder."""
+        here = _Here(island_id, self._sense.odom)
+        self._requests.append(Docked(here.island_id, here.origin_odom))
+        self._since_dock = MotionRecord(self._sense.odom)
+        self._here = island_id
+        return here
+
+    def _lost(self, last: _Here) -> Generator[Step, None, _Here]:
+        """An arrival did not localize: the builder takes over as if the robot had left the
+        last island docked at by no known exit, with everything driven since as the prefix."""
+        self.state = ExplorerState.LOST
+        self.counts["lost"] += 1
+        self._requests.append(Handover(last.island_id, None, self._since_dock.strategy()))
+        self.state = ExplorerState.HANDED_OVER
+        return (yield from self._handed_over(last, None))
+
+    def _mark_blocked(self, island_id: int, exit_index: int) -> None:
+        self._blocked.add((island_id, exit_index))
+        self.counts["exits_blocked"] += 1
+        self._requests.append(ExitUpdate(island_id, exit_index, ExitState.BLOCKED))
+
+
+def _exit(island: Island, index: int) -> Exit:
+    for e in island.exits:
+        if e.index == index:
+            return e
+    raise ExploreError(f"island {island.id} has no exit {index}")
+
+
+def _updates_of(events: Iterable[BuilderEvent]) -> list[ExitUpdate]:
+    """The exit updates the builder's events carry (the map must show them before a choice)."""
+    return [u for e in events for u in e.exit_updates]

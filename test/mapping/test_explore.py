@@ -1,0 +1,234 @@
+"""Exploration by the map (issue 16): exits, the choice of the next exit, bad input.
+
+Public APIs only: `island_mapping.core.explore`, the builder's managed-mode inputs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from island_mapping.core.builder import BuilderConfig, BuilderError, IslandBuilder
+from island_mapping.core.builder.hooks import BuilderHooks
+from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
+from island_mapping.core.explore import (
+    ExitConfig,
+    ExitEvidence,
+    ExploreError,
+    ExplorerConfig,
+    arrival_exit,
+    explorer_hooks,
+    find_exits,
+    nearest_unexplored,
+    route_edges,
+    unexplored_count,
+)
+from island_mapping.core.graph import TopoGraph
+from island_mapping.evaluation.explore_exits import explore_by_exits
+from island_mapping.evaluation.navigate import SimSetup
+from island_msgs_py.types import (
+    ControlStrategy,
+    Edge,
+    Exit,
+    ExitState,
+    Island,
+    LineModel,
+    ModelType,
+    Pose2D,
+)
+from island_sim.core.world_loader import load_world
+
+# Walls in an island's frame (theta 0 along the hallway the robot arrived on, from -x) [m].
+T_WALLS = np.array([[-6, -1, 6, -1], [-6, 1, -1, 1], [1, 1, 6, 1], [-1, 1, -1, 6],
+                    [1, 1, 1, 6]], dtype=float)
+END_WALLS = np.array([[-6, -1, 1, -1], [-6, 1, 1, 1], [1, -1, 1, 1]], dtype=float)
+PLUS_WALLS = np.array([[-6, -1, -1, -1], [1, -1, 6, -1], [-6, 1, -1, 1], [1, 1, 6, 1],
+                       [-1, 1, -1, 6], [1, 1, 1, 6], [-1, -1, -1, -6], [1, -1, 1, -6]],
+                      dtype=float)
+APPROACH = np.array([[-5.0, 0.0, 0.0, 0.0]])  # the robot drove in from the west
+
+
+def echoes(walls: np.ndarray, rng: np.random.Generator, step_m: float = 0.3,
+           noise_m: float = 0.03) -> np.ndarray:
+    """Echo points along the walls, with range noise."""
+    pts = []
+    for x0, y0, x1, y1 in walls:
+        n = max(2, int(math.hypot(x1 - x0, y1 - y0) / step_m))
+        t = np.linspace(0.0, 1.0, n)[:, None]
+        pts.append(np.hstack([x0 + t * (x1 - x0), y0 + t * (y1 - y0)]))
+    p = np.concatenate(pts)
+    return p + rng.normal(0.0, noise_m, p.shape)
+
+
+def headings_deg(exits: tuple[Exit, ...], snap_deg: float = 10.0) -> list[int]:
+    """Exit headings [deg, 0..359] rounded to the nearest axis when within snap_deg (an
+    exit's heading points into the opening's entry, a few degrees off the corridor's axis)."""
+    out = []
+    for e in exits:
+        d = math.degrees(e.heading_rad) % 360.0
+        axis = 90.0 * round(d / 90.0)
+        out.append(round(axis if abs(d - axis) <= snap_deg else d) % 360)
+    return sorted(out)
+
+
+@pytest.mark.parametrize(("walls", "expected"), [
+    (T_WALLS, [0, 90, 180]), (END_WALLS, [180]), (PLUS_WALLS, [0, 90, 180, 270]),
+])
+def test_exits_of_a_star_in_a_t_a_corridor_end_and_a_crossing(walls: np.ndarray,
+                                                               expected: list[int]) -> None:
+    rng = np.random.default_rng(3)
+    ev = ExitEvidence(walls, echoes(walls, rng), APPROACH, math.pi)
+    exits = find_exits(ev)
+    assert headings_deg(exits) == expected
+    assert all(e.state is ExitState.UNEXPLORED for e in exits)
+    assert [e.index for e in exits] == list(range(len(exits)))
+    came = arrival_exit(exits, math.pi)
+    assert came is not None and round(math.degrees(came.heading_rad)) % 360 == 180
+
+
+def test_a_sparse_model_with_echoes_still_finds_the_side_corridor() -> None:
+    """Two wall lines only (a sonar model is sparse): the echoes close the false gaps."""
+    rng = np.random.default_rng(4)
+    ev = ExitEvidence(T_WALLS[:2], echoes(T_WALLS, rng), APPROACH, math.pi)
+    assert headings_deg(find_exits(ev)) == [0, 90, 180]
+
+
+def test_a_closed_corridor_end_without_echoes_is_not_closed() -> None:
+    """Without echoes the model alone decides: a missing end wall is an opening (liberal: a
+    false exit costs a short drive, a missed one costs coverage)."""
+    ev = ExitEvidence(END_WALLS[:2], np.zeros((0, 2)), APPROACH, math.pi)
+    assert {0, 180} <= set(headings_deg(find_exits(ev)))
+
+
+def _island(iid: int, exits: tuple[Exit, ...]) -> Island:
+    return Island(iid, LineModel(np.zeros((0, 4))), ModelType.LINE, 1.0, 0.0, exits=exits)
+
+
+def _edge(a: int, b: int, w: float) -> Edge:
+    return Edge(a, b, ControlStrategy(()), w, w)
+
+
+def _explored(k: int, edge: tuple[int, int]) -> Exit:
+    return Exit(k, 0.0, 1.0, ExitState.EXPLORED, edge)
+
+
+def test_the_explorer_picks_the_nearest_unexplored_exit_by_the_graph() -> None:
+    """0 -5- 1 -5- 2 and 0 -20- 3: the unexplored exits are at 2 (10 m by the graph) and 3
+    (20 m). From 0, island 2; from 3 itself, island 3; edges count backwards too."""
+    g = TopoGraph.from_parts(
+        [_island(0, (_explored(0, (0, 1)),)),
+         _island(1, (_explored(0, (0, 1)), _explored(1, (1, 2)))),
+         _island(2, (_explored(0, (1, 2)), Exit(1, 0.0, 1.0), Exit(2, 1.0, 1.0))),
+         _island(3, (_explored(0, (0, 3)), Exit(1, 0.0, 1.0)))],
+        [_edge(0, 1, 5.0), _edge(1, 2, 5.0), _edge(0, 3, 20.0)])
+    t = nearest_unexplored(g, 0)
+    assert t is not None and (t.island_id, t.exit_index) == (2, 1)
+    assert t.route == (0, 1, 2) and t.distance_m == pytest.approx(10.0)
+    t3 = nearest_unexplored(g, 3)
+    assert t3 is not None and (t3.island_id, t3.route) == (3, (3,))
+    back = nearest_unexplored(g, 2, skip={(2, 1), (2, 2)})
+    assert back is not None and back.route == (2, 1, 0, 3)
+    assert [e.source for e in route_edges(g, back.route)] == [2, 1, 0]
+    assert unexplored_count(g) == 3
+    assert nearest_unexplored(g, 0, skip={(2, 1), (2, 2), (3, 1)}) is None
+
+
+def test_ties_go_to_the_lower_island_id() -> None:
+    g = TopoGraph.from_parts([_island(0, ()), _island(1, (Exit(0, 0.0, 1.0),)),
+                              _island(2, (Exit(0, 0.0, 1.0),))],
+                             [_edge(0, 2, 4.0), _edge(0, 1, 4.0)])
+    t = nearest_unexplored(g, 0)
+    assert t is not None and t.island_id == 1
+
+
+def test_bad_input_names_what_is_wrong() -> None:
+    with pytest.raises(ExploreError, match="segments"):
+        ExitEvidence(np.zeros((3, 3)), np.zeros((0, 2)), np.zeros((0, 4)))
+    with pytest.raises(ExploreError, match="points"):
+        ExitEvidence(np.zeros((0, 4)), np.array([[np.nan, 0.0]]), np.zeros((0, 4)))
+    with pytest.raises(ExploreError, match="clearance_m"):
+        ExitConfig(clearance_m=-1.0)
+    with pytest.raises(ExploreError, match="exit_cap_s"):
+        ExplorerConfig(exit_cap_s=float("nan"))
+    g = TopoGraph.from_parts([_island(0, ()), _island(1, ())], [])
+    with pytest.raises(ExploreError, match="unknown island 7"):
+        nearest_unexplored(g, 7)
+    with pytest.raises(ExploreError, match="no edge between islands 0 and 1"):
+        route_edges(g, (0, 1))
+
+
+def test_the_builder_refuses_a_handover_it_cannot_take() -> None:
+    """Handover and docking are the explorer's (managed mode), and only at an island."""
+    plain = IslandBuilder(BuilderConfig())
+    with pytest.raises(BuilderError, match="not in managed mode"):
+        plain.handover(0, 0, ControlStrategy(()))
+    managed = IslandBuilder(BuilderConfig(), hooks=BuilderHooks(managed=True))
+    managed.on_odometry(0.0, Pose2D(0.0, 0.0, 0.0), np.zeros((3, 3)))
+    with pytest.raises(BuilderError, match="only while idle"):
+        managed.on_docked(0, Pose2D(0.0, 0.0, 0.0))
+    assert managed.islands == [] or len(managed.islands) == 0
+
+
+def test_exploration_ends_by_itself_in_a_small_world_with_every_exit_explored() -> None:
+    """The T world offline (simulator, builder in managed mode, explorer, hall follower): the
+    explorer says it is done, no exit is left unexplored, the map has an edge per explored
+    exit, and no arrival was reported localized while wrong, no wall touched."""
+    run = explore_by_exits(SimSetup(world=load_world("t_junction")), 600.0,
+                           rng=np.random.default_rng(1))
+    assert run.done and run.sim_seconds < 600.0
+    exits = [e for i in run.graph.islands() for e in i.exits]
+    assert len(run.graph) >= 2 and exits
+    assert all(e.state is not ExitState.UNEXPLORED for e in exits)
+    for e in exits:
+        if e.state is ExitState.EXPLORED:
+            assert e.edge is not None and run.graph.has_edge(*e.edge)
+    assert run.false_arrivals == 0 and run.collisions == 0
+
+
+def _robot_points(walls: np.ndarray, robot: Pose2D, rng: np.random.Generator,
+                  range_m: float = 5.0) -> np.ndarray:
+    """Echoes of `walls` within range_m of `robot`, in the robot's frame [m]."""
+    p = echoes(walls, rng, step_m=0.2, noise_m=0.02)
+    p = p[np.hypot(p[:, 0] - robot.x, p[:, 1] - robot.y) <= range_m]
+    c, s = math.cos(robot.theta), math.sin(robot.theta)
+    d = p - np.array([robot.x, robot.y])
+    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+
+
+def _t_island(iid: int) -> Island:
+    return Island(iid, LineModel(T_WALLS), ModelType.LINE, 1.0, 0.0)
+
+
+@pytest.mark.parametrize("right", [0, 1])
+def test_a_revisit_docks_onto_the_right_island(right: int) -> None:
+    """Two T junctions 30 m apart by odometry; the robot is back 0.45 m from one of them:
+    that one is recognised, at the robot's true pose in its frame."""
+    robot_in_island = Pose2D(0.4, 0.2, 0.05)
+    origins = {0: Pose2D(0.0, 0.0, 0.0), 1: Pose2D(30.0, 0.0, 0.0)}
+    at = origins[right].compose(robot_in_island)
+    rec = Recognizer(BuilderConfig())
+    for iid, o in origins.items():
+        rec.remember(iid, o, np.zeros((3, 3)))
+    snap = PoseSnapshot(at, np.diag([0.01, 0.01, 0.001]), 0.3, 0.02, 1 - right, 50.0)
+    pts = _robot_points(T_WALLS, robot_in_island, np.random.default_rng(5))
+    found = rec.recognize(pts, at, snap, [_t_island(0), _t_island(1)])
+    assert found is not None and found.island_id == right
+    assert math.hypot(found.pose.x - 0.4, found.pose.y - 0.2) < 0.1
+    gate = explorer_hooks(ExplorerConfig(), TopoGraph).accept_revisit
+    assert gate is not None and gate(found, snap, _t_island(right), False)
+    far = Recognition(right, Pose2D(4.0, 0.0, 0.0), found.residual_m, found.inlier_fraction)
+    assert not gate(far, snap, _t_island(right), False)  # seen from the next place: no dock
+
+
+def test_an_ambiguous_revisit_does_not_dock_without_more_evidence() -> None:
+    """Two identical T junctions 4 m apart, both within the search window of a drifted
+    odometry: the points fit both, so neither is recognised (a look-alike refusal)."""
+    robot_in_island = Pose2D(0.4, 0.2, 0.05)
+    rec = Recognizer(BuilderConfig())
+    rec.remember(0, Pose2D(0.0, 0.0, 0.0), np.zeros((3, 3)))
+    rec.remember(1, Pose2D(4.0, 0.0, 0.0), np.zeros((3, 3)))
+    snap = PoseSnapshot(robot_in_island, np.diag([1.0, 1.0, 0.001]), 0.3, 0.02, None, 50.0)
+    pts = _robot_points(T_WALLS, robot_in_island, np.random.default_rng(6))
+    assert rec.recognize(pts, robot_in_island, snap, [_t_island(0), _t_island(1)]) is None
+    assert rec.diagnostics.revisit_refusals.get("look_alike", 0) >= 1
