@@ -62,7 +62,7 @@ def test_a_run_without_overrides_or_summary_gives_none(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("summary", "message"), [
-    ("{not json", "not readable JSON"),
+    ("{not json", "not valid JSON"),
     ({"parameters": {"island_builder_node": [1]}}, "is not a mapping"),
 ])
 def test_a_damaged_summary_is_named(tmp_path: Path, summary: object, message: str) -> None:

@@ -10,6 +10,7 @@ import pytest
 from island_msgs_py.conversions import (
     ConversionError,
     arrays_to_scan,
+    check_stamp,
     command_to_twist,
     command_to_twist_stamped,
     ns_to_time,
@@ -20,6 +21,7 @@ from island_msgs_py.conversions import (
     twist_stamped_to_command,
     twist_to_command,
 )
+from island_msgs_py.limits import MAX_SCAN_RANGES, MAX_STAMP_AHEAD_S
 from island_msgs_py.types import Pose2D
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import LaserScan
@@ -99,3 +101,23 @@ def test_twist_stamped_round_trip_keeps_the_answered_stamp() -> None:
         twist_stamped_to_command(command_to_twist_stamped(0.0, float("nan"), 0))
     with pytest.raises(ConversionError, match="stamp"):
         command_to_twist_stamped(0.0, 0.0, -1)
+
+
+def test_a_scan_longer_than_any_sensor_is_refused_before_conversion() -> None:
+    msg = LaserScan(angle_increment=0.001, range_max=10.0)
+    msg.ranges = [1.0] * MAX_SCAN_RANGES
+    assert scan_to_arrays(msg)[0].shape == (MAX_SCAN_RANGES,)
+    msg.ranges = [1.0] * (MAX_SCAN_RANGES + 1)
+    with pytest.raises(ConversionError, match=f"{MAX_SCAN_RANGES + 1} values .*limit is "
+                       f"{MAX_SCAN_RANGES}"):
+        scan_to_arrays(msg)
+
+
+def test_a_stamp_far_ahead_of_the_clock_is_refused_naming_the_topic() -> None:
+    now = 100 * 10**9
+    limit_ns = round(MAX_STAMP_AHEAD_S * 1e9)
+    check_stamp(now + limit_ns, now, "/odom")
+    check_stamp(0, now, "/odom")  # old stamps are the subscriber's business
+    with pytest.raises(ConversionError, match=r"/cmd_vel: header.stamp .* ahead .*limit"):
+        check_stamp(now + limit_ns + 1, now, "/cmd_vel")
+    check_stamp((2**31 - 1) * 10**9, 0, "/odom")  # a clock that has not started cannot judge

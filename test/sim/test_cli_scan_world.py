@@ -54,7 +54,7 @@ def test_scan_world_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
 
 @pytest.mark.parametrize(
     ("pose", "match"),
-    [("1,2", "three numbers"), ("a,b,c", "not numbers"), ("1,nan,0", "NaN")],
+    [("1,2", "three numbers"), ("a,b,c", "not a number"), ("1,nan,0", "NaN")],
 )
 def test_scan_bad_pose(capsys: pytest.CaptureFixture[str], pose: str, match: str) -> None:
     code, _, err = _run(capsys, "scan", "--world", "corridor", "--pose", pose)

@@ -24,6 +24,9 @@ from typing import Any, TypeVar
 import numpy as np
 import rclpy
 from island_msgs_py.conversions import odometry_to_pose
+from island_msgs_py.errors import InputError
+from island_msgs_py.inputs import parse_int
+from island_msgs_py.limits import MAX_DOMAIN_ID, MAX_SEED
 from island_msgs_py.ros_params import ensure_ros_env
 from island_msgs_py.types import FloatArray
 from island_sim.nodes.hall_follower_node import HallFollowerNode
@@ -63,7 +66,7 @@ class RunError(RuntimeError):
     """The in-process run could not be set up or did not finish."""
 
 
-class RunParameterError(RunError):
+class RunParameterError(RunError, InputError):
     """A parameter override names no node of the run, or one its node rejects or lacks."""
 
 
@@ -155,11 +158,20 @@ def resolve_domain_id(requested: int) -> int:
         return requested
     env = os.environ.get("ROS_DOMAIN_ID", "").strip()
     if env:
-        return int(env)
+        try:
+            return parse_int(env, "ROS_DOMAIN_ID", RunParameterError, 0, MAX_DOMAIN_ID)
+        except RunParameterError as exc:
+            raise RunParameterError(f"{exc} (a Fast DDS domain on Linux)") from None
     return random.SystemRandom().randint(PRIVATE_DOMAIN_MIN, PRIVATE_DOMAIN_MAX)
 
 
 _N = TypeVar("_N", bound=Node)
+
+
+def _seed(seed: int, offset: int) -> int:
+    """The seed of the run's node number `offset`: seed + offset, kept in the int64 range of a
+    ROS integer parameter."""
+    return (seed + offset) % (MAX_SEED + 1)
 
 
 def _make_node(ctx: Context, cls: type[_N], name: str, base: dict[str, Any],
@@ -195,14 +207,14 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
             raise RunParameterError(f"no node {', '.join(unknown)} in the run (nodes: "
                            f"{', '.join(NODE_NAMES)})")
         odo = _make_node(ctx, OdometryNode, "odometry_node", {
-            "world": cfg.world, "seed": cfg.seed, "sim.real_time_factor": 0.0,
+            "world": cfg.world, "seed": _seed(cfg.seed, 0), "sim.real_time_factor": 0.0,
             "sim.lockstep": True, "sim.stop_after_s": float(cfg.sim_seconds),
         }, cfg.params, nodes)
         sonar = _make_node(ctx, SonarNode, "sonar_node",
-                           {**sim_time, "world": cfg.world, "seed": cfg.seed + 1}, cfg.params,
+                           {**sim_time, "world": cfg.world, "seed": _seed(cfg.seed, 1)}, cfg.params,
                            nodes)
         follower = _make_node(ctx, HallFollowerNode, "hall_follower_node",
-                              {**sim_time, "seed": cfg.seed + 2}, cfg.params, nodes)
+                              {**sim_time, "seed": _seed(cfg.seed, 2)}, cfg.params, nodes)
         builder = _make_node(ctx, IslandBuilderNode, "island_builder_node", sim_time, cfg.params,
                              nodes)
         _make_node(ctx, IslandLocalizerNode, "island_localizer_node", sim_time, cfg.params, nodes)

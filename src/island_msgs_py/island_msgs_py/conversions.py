@@ -48,6 +48,8 @@ from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
 
 from island_msgs_py import json_io
+from island_msgs_py.errors import InputError
+from island_msgs_py.limits import MAX_SCAN_RANGES, MAX_STAMP_AHEAD_S
 from island_msgs_py.types import (
     Edge,
     ExitState,
@@ -82,7 +84,7 @@ EXIT_COLOURS = {  # an exit's arrow by its state: still to explore, done, not wo
 }
 
 
-class ConversionError(ValueError):
+class ConversionError(InputError):
     """A message (or value for one) is malformed; the message says which field and why."""
 
 
@@ -339,6 +341,18 @@ def time_to_ns(t: Time) -> int:
     return int(t.sec) * NS_PER_S + int(t.nanosec)
 
 
+def check_stamp(t_ns: int, now_ns: int, topic: str,
+                max_ahead_s: float = MAX_STAMP_AHEAD_S) -> None:
+    """Refuse (ConversionError naming `topic`) a stamp more than `max_ahead_s` ahead of the
+    receiving node's clock `now_ns`: one message stamped 2^31 - 1 s would make every later one
+    look old. A clock that has not started (`now_ns` <= 0: sim time before its first /clock)
+    cannot judge and takes any stamp."""
+    if now_ns > 0 and t_ns - now_ns > max_ahead_s * NS_PER_S:
+        raise ConversionError(
+            f"{topic}: header.stamp {t_ns / NS_PER_S:.9g} s is {(t_ns - now_ns) / NS_PER_S:.6g} s "
+            f"ahead of the node's clock (the limit is {max_ahead_s:g} s)")
+
+
 # ----------------------------------------------------------------------------- LaserScan
 
 
@@ -373,8 +387,14 @@ def arrays_to_scan(
     return msg
 
 
-def scan_to_arrays(msg: LaserScan) -> tuple[FloatArray, FloatArray]:
-    """(ranges (N,) [m], bearings (N,) [rad]); NaN and out-of-limit readings become inf."""
+def scan_to_arrays(msg: LaserScan, max_ranges: int = MAX_SCAN_RANGES
+                   ) -> tuple[FloatArray, FloatArray]:
+    """(ranges (N,) [m], bearings (N,) [rad]); NaN and out-of-limit readings become inf. A scan
+    of more than `max_ranges` ranges is refused before any work on it."""
+    if len(msg.ranges) > max_ranges:
+        raise ConversionError(
+            f"scan: ranges has {len(msg.ranges)} values (the limit is {max_ranges}, more than "
+            "any sensor of the project produces)")
     r = np.asarray(msg.ranges, dtype=np.float64)
     if r.size == 0:
         raise ConversionError("scan: no ranges")

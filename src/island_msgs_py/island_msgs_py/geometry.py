@@ -21,6 +21,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from island_msgs_py.errors import InputError
 from island_msgs_py.types import FloatArray, Pose2D
 
 IntArray = npt.NDArray[np.int64]
@@ -29,7 +30,7 @@ IntArray = npt.NDArray[np.int64]
 _CLEARANCE_PAIRS = 1 << 20
 
 
-class GeometryError(ValueError):
+class GeometryError(InputError):
     """An array of the wrong shape (the message names the argument and the shape)."""
 
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from island_msgs_py.errors import InputError
 from island_msgs_py.types import FloatArray
 
 # A wall fit needs points spread at least this far along the robot's x axis [m].
@@ -25,7 +26,7 @@ MIN_FIT_SPAN_M = 0.2
 PARALLEL_RAD = math.radians(8.0)
 
 
-class PerceptionError(ValueError):
+class PerceptionError(InputError):
     """A scan that cannot be perceived (the message names what is wrong)."""
 
 

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from island_msgs_py.errors import InputError
 from island_msgs_py.limits import (
     MAX_GRAPH_FILE_BYTES,
     MAX_ISLAND_ID,
@@ -30,7 +31,7 @@ from island_msgs_py.limits import (
 _SCAN_CHUNK_BYTES = 1 << 22  # the nesting-depth scan looks at this many bytes at a time
 
 
-class GraphFormatError(ValueError):
+class GraphFormatError(InputError):
     """A JSON document is not a valid island/edge/graph; the message starts with the field path."""
 
     def __init__(self, path: str, problem: str) -> None:

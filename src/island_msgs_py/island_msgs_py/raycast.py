@@ -18,13 +18,14 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
+from island_msgs_py.errors import InputError
 from island_msgs_py.types import FloatArray
 
 # Rays closer than this to a segment's supporting line count as parallel (no hit) [m].
 _PARALLEL_EPS = 1e-12
 
 
-class RaycastError(ValueError):
+class RaycastError(InputError):
     """Malformed rays (origins and angles that do not match); the message names the shapes."""
 
 
@@ -214,16 +215,18 @@ class SegmentIndex:
                         t[ii], jg[ii] = _nearest_hits(self._p[:n], self._e[:n], o[rays], a[rays])
                     continue
                 kmax = max(1, int(ray_counts[sel].max()))
-                rows = np.unique(inv[sel])
-                table = np.full((ukeys.size, kmax), n, dtype=np.int64)
-                for row in rows.tolist():
+                # One table row per bin of this bucket (not per bin of the pass: a few big
+                # candidate lists times every bin would not fit in memory).
+                rows, row_of = np.unique(inv[sel], return_inverse=True)
+                table = np.full((rows.size, kmax), n, dtype=np.int64)
+                for k, row in enumerate(rows.tolist()):
                     c = lists[row]
-                    table[row, : c.size] = c
+                    table[k, : c.size] = c
                 step = max(1, _MAX_PAIRS // kmax)
                 for s in range(0, sel.size, step):
                     ii = sel[s : s + step]
                     rays = pending[ii]
-                    cand = table[inv[ii]]  # (R, K) global segment indices, padded with n
+                    cand = table[row_of[s : s + step]]  # (R, K) segment indices, padded with n
                     ts = _hit_distances(
                         self._p[cand, 0],
                         self._p[cand, 1],

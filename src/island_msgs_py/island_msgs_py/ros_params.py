@@ -25,6 +25,8 @@ import math
 import os
 import signal
 import sys
+import time
+import traceback
 import typing
 from collections.abc import Callable, Iterable, Sequence
 from enum import Enum
@@ -74,6 +76,42 @@ class BadMessageLog:
         self.count += 1
         self._logger.warn(f"ignored bad {what} ({self.count} so far): {exc}",
                           throttle_duration_sec=self._throttle_s)
+
+
+def clock_ns(node: Node) -> int:
+    """The node's clock now [ns] (sim time when use_sim_time: 0 before the first /clock)."""
+    return int(node.get_clock().now().nanoseconds)
+
+
+SHUTDOWN_SETTLE_S = 0.5
+"""A callback that fails while a signal shuts the context down is told from a bug by waiting
+this long for the context to report the shutdown [s]."""
+
+
+def _shutting_down(context: Any) -> bool:
+    deadline = time.monotonic() + SHUTDOWN_SETTLE_S
+    while context.ok():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)
+    return True
+
+
+def spin_guarded(executor: Any, node: Node) -> None:
+    """`executor.spin()`, except that an exception escaping a callback (a bug some message
+    triggered: the callbacks turn bad input into counted warnings themselves) is logged with its
+    traceback and the node spins on: one message never kills a node."""
+    logger = node.get_logger()
+    failures = 0
+    while executor.context.ok():
+        try:
+            executor.spin_once()
+        except Exception:  # the node survives; the traceback goes to its log
+            if _shutting_down(executor.context):
+                raise  # what failed was the shut-down context (Ctrl-C, SIGTERM)
+            failures += 1
+            logger.error(f"a callback failed ({failures} so far), the node goes on:\n"
+                         f"{traceback.format_exc()}", throttle_duration_sec=BAD_MESSAGE_THROTTLE_S)
 
 
 def ensure_ros_env() -> None:
@@ -331,7 +369,7 @@ def run_node(
             return EXIT_BAD_CONFIG
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        executor.spin()
+        spin_guarded(executor, node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:

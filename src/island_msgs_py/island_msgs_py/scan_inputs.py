@@ -16,11 +16,13 @@ from sensor_msgs.msg import LaserScan
 
 from island_msgs_py.conversions import (
     ConversionError,
+    check_stamp,
     odometry_to_pose,
     scan_to_arrays,
     time_to_ns,
 )
 from island_msgs_py.qos import STREAM_QOS
+from island_msgs_py.ros_params import clock_ns
 from island_msgs_py.stamps import Paired, ScanOdomPairer
 from island_msgs_py.types import FloatArray
 
@@ -41,6 +43,7 @@ def subscribe_paired_scans(
     def on_odom(msg: Odometry) -> None:
         try:
             pose, _, t_ns = odometry_to_pose(msg)
+            check_stamp(t_ns, clock_ns(node), "/odom")
         except ConversionError as exc:
             warn("odom", exc)
             return
@@ -49,11 +52,13 @@ def subscribe_paired_scans(
     def on_scan(msg: LaserScan) -> None:
         try:
             scan = scan_to_arrays(msg)
+            t_ns = time_to_ns(msg.header.stamp)
+            check_stamp(t_ns, clock_ns(node), "/sonar/scan")
         except ConversionError as exc:
             warn("sonar/scan", exc)
             return
         dropped = pairer.dropped_scans
-        handle(pairer.scan(time_to_ns(msg.header.stamp), scan))
+        handle(pairer.scan(t_ns, scan))
         if pairer.dropped_scans > dropped:
             warn("sonar/scan", ValueError("no odometry at or after a scan's stamp"))
 

@@ -17,12 +17,13 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
+from island_msgs_py.errors import InputError
 from island_msgs_py.types import Pose2D
 
 T = TypeVar("T")
 
 
-class StampError(ValueError):
+class StampError(InputError):
     """Bad pairing parameter (the message names it)."""
 
 

@@ -26,6 +26,7 @@ from enum import StrEnum
 import numpy as np
 import numpy.typing as npt
 
+from island_msgs_py.errors import InputError
 from island_msgs_py.limits import (
     MAX_EXIT_INDEX,
     MAX_EXITS_PER_ISLAND,
@@ -38,7 +39,7 @@ from island_msgs_py.limits import (
 FloatArray = npt.NDArray[np.float64]
 
 
-class IslandTypeError(ValueError):
+class IslandTypeError(InputError):
     """A value of a shared type is malformed (the message names the field and the problem)."""
 
 

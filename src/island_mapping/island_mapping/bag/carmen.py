@@ -167,6 +167,19 @@ def _drift_variances(odom_raw: FloatArray, cfg: CarmenImportConfig
     return var_xy, var_th
 
 
+MAX_LOG_TIME_S = 2**31 - 1
+"""Latest log time a ROS stamp holds (builtin_interfaces/Time.sec is an int32) [s]."""
+
+
+def _check_times(log_path: str | os.PathLike[str], what: str, times_s: Any) -> None:
+    """BagError naming the file and the first time outside [0, MAX_LOG_TIME_S]."""
+    t = np.asarray(times_s, dtype=np.float64)
+    bad = np.flatnonzero(~(np.isfinite(t) & (t >= 0) & (t <= MAX_LOG_TIME_S)))
+    if bad.size:
+        raise BagError(f"{log_path}: {what} time {t[bad[0]]:.6g} s (record {bad[0]}) is outside "
+                       f"[0, {MAX_LOG_TIME_S}] s, the range of a ROS stamp (the limit)")
+
+
 def import_carmen(
     log_path: str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
@@ -184,6 +197,8 @@ def import_carmen(
         raise BagError(f"--beams must be one of {SONAR_BEAM_CHOICES}, got {beams}")
     log = read_carmen(log_path, override)
     assert log.geometry is not None
+    _check_times(log_path, "scan", log.scan_log_times_s)
+    _check_times(log_path, "ODOM", log.odom_times_s)
     n_in = log.ranges_m.shape[1]
     idx = sonar_like_indices(n_in, beams) if beams else np.arange(n_in)
     step = (n_in / beams) if beams else 1.0

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from island_msgs_py.errors import InputError
 
-class BagError(Exception):
+
+class BagError(InputError):
     """A recording could not be written or read (bad path, unknown type, bad data)."""
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any
 
 import yaml
+from island_msgs_py.inputs import load_yaml
 
 from island_mapping.bag.errors import BagError
 
@@ -64,10 +65,7 @@ def qos_from_yaml(text: str | list[QosDict]) -> list[QosDict]:
     """Parse channel metadata text (or an already parsed metadata.yaml list) into dicts."""
     if not text:
         return []
-    try:
-        items = yaml.safe_load(text) if isinstance(text, str) else text
-    except yaml.YAMLError as exc:
-        raise BagError(f"offered_qos_profiles is not valid YAML: {exc}") from None
+    items = load_yaml(text, "offered_qos_profiles", BagError) if isinstance(text, str) else text
     if not isinstance(items, list) or not all(isinstance(i, dict) for i in items):
         raise BagError(f"offered_qos_profiles must be a list of mappings, got {items!r}")
     out: list[QosDict] = []

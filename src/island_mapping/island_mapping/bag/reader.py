@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
+from island_msgs_py.inputs import load_yaml, read_text
 from mcap.reader import make_reader
 
 from island_mapping.bag.errors import BagCorruptError, BagError
@@ -110,12 +110,13 @@ class BagReader:
             raise BagError(f"{p} does not exist (expected a rosbag2 directory or an .mcap file)")
         meta_path = p / METADATA_FILE
         if meta_path.is_file():
+            meta = load_yaml(read_text(meta_path, error=BagError, what="rosbag2 metadata"),
+                             str(meta_path), BagError)
             try:
-                meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))
                 info = meta["rosbag2_bagfile_information"]
                 rel = [str(x) for x in info["relative_file_paths"]]
                 storage = info.get("storage_identifier", "mcap")
-            except (yaml.YAMLError, KeyError, TypeError, OSError) as exc:
+            except (KeyError, TypeError, AttributeError) as exc:
                 raise BagError(f"{meta_path}: not a rosbag2 metadata file ({exc})") from None
             if storage != "mcap":
                 raise BagError(f"{meta_path}: storage {storage!r} is not supported (only mcap)")

@@ -18,6 +18,10 @@ from typing import Any
 
 from island_mapping.bag.errors import BagError
 from island_mapping.cli import CliError
+from island_mapping.cli.args import COUNT, SECONDS, number
+
+RATE = number(0.0, 1e6, exclusive_minimum=True)
+"""A playback speed factor (> 0, at most a million)."""
 
 SUBSCRIBER_SETTLE_S = 0.3
 """After a subscriber is discovered, time for its match with our publisher to complete."""
@@ -31,25 +35,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p = sub.add_parser("echo", help="print messages of one topic as YAML-like text")
     p.add_argument("bag", help="rosbag2 directory or .mcap file")
     p.add_argument("--topic", required=True, help="topic to print")
-    p.add_argument("--limit", type=int, default=None, help="print at most N messages")
-    p.add_argument("--max-array", type=int, default=None,
+    p.add_argument("--limit", type=COUNT, default=None, help="print at most N messages")
+    p.add_argument("--max-array", type=COUNT, default=None,
                    help="array items shown before '...' (0: all)")
 
     p = sub.add_parser("play", help="publish the recording with its timing and /clock")
     p.add_argument("bag", help="rosbag2 directory or .mcap file")
-    p.add_argument("--rate", type=float, default=1.0, help="playback speed factor")
+    p.add_argument("--rate", type=RATE, default=1.0, help="playback speed factor")
     p.add_argument("--loop", action="store_true", help="start again at the end")
     p.add_argument("--topics", nargs="+", default=None, help="only these topics")
     p.add_argument("--clock", dest="clock", action="store_true", default=True,
                    help="publish /clock with the bag time (default)")
     p.add_argument("--no-clock", dest="clock", action="store_false",
                    help="replay a recorded /clock as a plain topic instead")
-    p.add_argument("--delay", type=float, default=0.0,
+    p.add_argument("--delay", type=SECONDS, default=0.0,
                    help="wait this long before playing, so subscribers are discovered [s]")
     p.add_argument("--wait-for", nargs="+", default=(), metavar="TOPIC",
                    help="before playing, wait until each of these topics has a subscriber "
                         "(at most --wait-timeout)")
-    p.add_argument("--wait-timeout", type=float, default=30.0,
+    p.add_argument("--wait-timeout", type=SECONDS, default=30.0,
                    help="longest wait for --wait-for subscribers [s]")
 
     p = sub.add_parser("recover", help="rescue the complete chunks of an interrupted recording")

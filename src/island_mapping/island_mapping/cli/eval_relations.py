@@ -26,7 +26,15 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from island_mapping.bag.carmen import MAX_LOG_TIME_S
 from island_mapping.cli import CliError
+from island_mapping.cli.args import (
+    COUNT,
+    SECONDS,
+    SEED,
+    check_output_dir,
+    number,
+)
 from island_mapping.core.builder.passive import IslandRun
 from island_mapping.logs import islands as offline
 
@@ -39,10 +47,10 @@ PROGRESS_EVERY_SCANS = 100
 
 def add_geometry_arguments(parser: argparse.ArgumentParser) -> None:
     """--fov-deg, --angle-min-deg: the scan geometry when the data does not give it."""
-    parser.add_argument("--fov-deg", type=float, default=None,
+    parser.add_argument("--fov-deg", type=number(0.0, 360.0, exclusive_minimum=True), default=None,
                         help="scan geometry when the log does not give it: the angle from the "
                              "first to the last beam [deg]")
-    parser.add_argument("--angle-min-deg", type=float, default=None,
+    parser.add_argument("--angle-min-deg", type=number(-360.0, 360.0), default=None,
                         help="with --fov-deg: the first beam's angle, CCW from the robot's x "
                              "axis [deg] (default: the scan is centred)")
 
@@ -55,7 +63,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--reference", default=None,
                         help="reference trajectory (`t x y theta` or TUM lines; default: the "
                              "log's own scan poses)")
-    parser.add_argument("--time-offset-s", type=float, default=None,
+    parser.add_argument("--time-offset-s", type=number(-MAX_LOG_TIME_S, MAX_LOG_TIME_S),
+                        default=None,
                         help="relation time = log time + this [s] (default: found from the log)")
     parser.add_argument("--out", required=True, help="output directory")
     add_geometry_arguments(parser)
@@ -69,12 +78,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--place-recognition", action="store_true",
                         help="a lost robot first searches every island's model for its scan "
                              "(re-enters islands on revisits; slower)")
-    parser.add_argument("--seed", type=int, default=0,
+    parser.add_argument("--seed", type=SEED, default=0,
                         help="recorded only: the pipeline has no random step")
-    parser.add_argument("--bridge-s", type=float, default=DEFAULT_BRIDGE_S,
+    parser.add_argument("--bridge-s", type=SECONDS, default=DEFAULT_BRIDGE_S,
                         help="bridged scoring: a relation time at most this far from a localized "
                              "scan takes its fix plus raw odometry [s] (0 = off)")
-    parser.add_argument("--max-scans", type=int, default=None,
+    parser.add_argument("--max-scans", type=COUNT, default=None,
                         help="use only the first N scans (quick runs)")
 
 
@@ -165,8 +174,6 @@ def write_outputs(out: Path, metrics: dict[str, Any], args: argparse.Namespace) 
 
 
 def run(args: argparse.Namespace) -> int:
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise CliError(f"--out {out}: exists and is not a directory")
+    out = check_output_dir(args.out)
     write_outputs(out, evaluate(args), args)
     return 0

@@ -23,6 +23,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from island_msgs_py.inputs import read_json
+from island_msgs_py.json_checks import describe
 from island_msgs_py.json_io import GraphFormatError, atomic_write_text, pose_from_dict
 from island_msgs_py.types import Pose2D
 from island_sim.core.freespace import FreeSpaceError
@@ -31,6 +33,7 @@ from island_sim.core.world import World, WorldError
 from island_sim.core.world_loader import load_world
 
 from island_mapping.cli import CliError
+from island_mapping.cli.args import COUNT, METRES, SEED, coordinates, output_dir
 from island_mapping.core.graph import GraphError, TopoGraph
 from island_mapping.evaluation.world_eval import (
     MapEvaluation,
@@ -55,37 +58,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "names)")
     parser.add_argument("--map", required=True, help="directory `islands explore --out` wrote")
     parser.add_argument("--out", default="", help="output directory (default: --map)")
-    parser.add_argument("--resolution", type=float, default=None,
+    parser.add_argument("--resolution", type=METRES, default=None,
                         help="image worlds: metres per pixel (default: summary.json's, or 0.1)")
     parser.add_argument("--start", default="", metavar="X,Y,THETA",
                         help="start pose [m, m, rad] the reachable free space is taken from "
                              "(default: summary.json's, else the world's)")
-    parser.add_argument("--routes", type=int, default=20,
+    parser.add_argument("--routes", type=COUNT, default=20,
                         help="random island pairs for route lengths when summary.json has no "
                              "followed routes (0 = none)")
-    parser.add_argument("--seed", type=int, default=1, help="seed of those random pairs")
+    parser.add_argument("--seed", type=SEED, default=1, help="seed of those random pairs")
 
 
 def parse_pose(text: str, option: str = "--start") -> Pose2D:
     """Pose2D from 'X,Y,THETA' [m, m, rad]; CliError naming `option` if malformed."""
-    parts = text.split(",")
-    try:
-        vals = [float(p) for p in parts]
-    except ValueError:
-        vals = []
-    if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
-        raise CliError(f"{option}: expected X,Y,THETA (three finite numbers), got {text!r}")
-    return Pose2D(*vals)
+    return Pose2D(*coordinates(text, option, ("X", "Y", "THETA")))
 
 
 def _read_json(path: Path) -> Any:
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
+    if not path.exists():
         raise CliError(f"{path}: no such file (is --map a directory `islands explore` "
-                       "wrote?)") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CliError(f"{path}: cannot read JSON ({exc})") from None
+                       "wrote?)")
+    return read_json(path, CliError)
 
 
 def truth_places(world: World, spec: str, resolution_m: float | None,
@@ -158,6 +151,10 @@ def _load_run(map_dir: Path) -> tuple[dict[str, Any], TopoGraph, list[Any]]:
     if not isinstance(events, list):
         raise CliError(f"{map_dir / 'summary.json'}: no builder_events list (written by "
                        "`islands explore` since it evaluates maps; re-run the exploration)")
+    bad = next((k for k, e in enumerate(events) if not isinstance(e, dict)), None)
+    if bad is not None:
+        raise CliError(f"{map_dir / 'summary.json'}: builder_events[{bad}]: expected an object, "
+                       f"got {describe(events[bad])}")
     return summary, graph, events
 
 
@@ -177,9 +174,15 @@ def run(args: argparse.Namespace) -> int:
     map_dir = Path(args.map)
     summary, graph, events = _load_run(map_dir)
     spec = args.world or summary.get("world_spec", "")
-    if not spec:
-        raise CliError("--world is required (summary.json names no world_spec)")
+    if not spec or not isinstance(spec, str):
+        raise CliError(f"--world is required (summary.json names no world_spec: "
+                       f"{describe(spec)})")
     resolution = args.resolution if args.resolution is not None else summary.get("resolution_m")
+    if resolution is not None and (isinstance(resolution, bool)
+                                   or not isinstance(resolution, int | float)
+                                   or not (math.isfinite(resolution) and resolution > 0)):
+        raise CliError(f"{map_dir / 'summary.json'}: resolution_m: expected a number > 0, got "
+                       f"{describe(resolution)}")
     try:
         world = load_world(spec, resolution)
     except WorldError as exc:
@@ -192,8 +195,7 @@ def run(args: argparse.Namespace) -> int:
     if not pairs:
         pairs = _connected_pairs(graph, _random_pairs(graph, args.routes, args.seed))
     places = truth_places(world, str(spec), resolution, start)
-    out = Path(args.out) if args.out else map_dir
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(args.out, "--out") if args.out else map_dir
     figures = evaluate_and_draw(world, places, graph, events, pairs, out,
                                 title=f"{world.name} ({map_dir.name})", start=start)
     figures["world"] = world.name

@@ -32,6 +32,14 @@ from island_sim.core.world import WorldError
 from island_sim.core.world_loader import load_world
 
 from island_mapping.cli import CliError
+from island_mapping.cli.args import (
+    COUNT,
+    DOMAIN_ID,
+    METRES,
+    POSITIVE_SECONDS,
+    SEED,
+    output_dir,
+)
 from island_mapping.cli.params import parse_assignments, parse_node_assignments
 from island_mapping.cli.progress import ProgressBar
 from island_mapping.core.graph import TopoGraph
@@ -54,20 +62,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.add_argument("--world", default="paper_fig4",
                         help="world file, built-in name or gen:office:seed=N,scale=S")
-    parser.add_argument("--resolution", type=float, default=None,
+    parser.add_argument("--resolution", type=METRES, default=None,
                         help="image worlds: metres per pixel (default 0.1)")
     parser.add_argument("--start", default="", metavar="X,Y,THETA",
                         help="start pose [m, m, rad] (default: the world's)")
     parser.add_argument("--out", required=True, help="output directory (created)")
-    parser.add_argument("--seed", type=int, default=1, help="seed of every simulated noise")
-    parser.add_argument("--sim-seconds", type=float, default=900.0,
+    parser.add_argument("--seed", type=SEED, default=1, help="seed of every simulated noise")
+    parser.add_argument("--sim-seconds", type=POSITIVE_SECONDS, default=900.0,
                         help="simulated exploration time [s] (default 900)")
-    parser.add_argument("--routes", type=int, default=20,
+    parser.add_argument("--routes", type=COUNT, default=20,
                         help="random island pairs for the route-following evaluation (0 = skip)")
     parser.add_argument("--no-record", action="store_true", help="do not write run_bag/")
-    parser.add_argument("--wall-timeout", type=float, default=3600.0,
+    parser.add_argument("--wall-timeout", type=POSITIVE_SECONDS, default=3600.0,
                         help="give up after this much wall time [s]")
-    parser.add_argument("--domain-id", type=int, default=-1,
+    parser.add_argument("--domain-id", type=DOMAIN_ID, default=None,
                         help="ROS domain of the run (default: ROS_DOMAIN_ID if set, else a random "
                              "private one, printed, so concurrent runs stay apart)")
     parser.add_argument("--builder-param", action="append", default=[], metavar="NAME=VALUE",
@@ -157,10 +165,9 @@ def run(args: argparse.Namespace) -> int:
     start = parse_pose(args.start) if args.start else world.start_pose
     if args.start:
         params.setdefault("odometry_node", {})["start_pose"] = args.start
-    out = Path(args.out)
     if args.resolution is not None:
         check_image_resolution(Path(args.world), args.resolution)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(args.out)
     spec = (str(map_world_file(Path(args.world), args.resolution, out))
             if args.resolution is not None else args.world)
     bag_dir = out / "run_bag"
@@ -169,7 +176,10 @@ def run(args: argparse.Namespace) -> int:
     bar = None if args.quiet else ProgressBar(f"explore {world.name}")
     progress = None if bar is None else (
         lambda frac: bar(round(frac * PROGRESS_STEPS), PROGRESS_STEPS))
-    domain = resolve_domain_id(args.domain_id)
+    try:
+        domain = resolve_domain_id(-1 if args.domain_id is None else args.domain_id)
+    except RunParameterError as exc:
+        raise CliError(str(exc)) from None
     print(f"islands explore: ROS_DOMAIN_ID={domain} (watch with "
           f"`ROS_DOMAIN_ID={domain} islands topic echo /hall_follower/strategy`)", file=sys.stderr)
     cfg = RunConfig(world=spec, seed=args.seed, sim_seconds=args.sim_seconds,

@@ -23,10 +23,12 @@ import argparse
 import json
 import math
 from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
+from island_msgs_py.inputs import read_json
+
 from island_mapping.cli import CliError
+from island_mapping.cli.args import METRES, POSITIVE_COUNT, SEED, check_output_dir
 from island_mapping.cli.measure import load_world_or_fail
 from island_mapping.cli.progress import ProgressBar
 from island_mapping.core.fisher import FisherConfig, FisherError
@@ -38,12 +40,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.add_argument("--world", required=True, help="world file or built-in name")
     parser.add_argument("--out", required=True, help="output directory")
-    parser.add_argument("--resolution", type=float, default=0.5,
+    parser.add_argument("--resolution", type=METRES, default=0.5,
                         help="grid of the confidence map and of the comparison [m]")
-    parser.add_argument("--map-resolution", type=float, default=0.25,
+    parser.add_argument("--map-resolution", type=METRES, default=0.25,
                         help="grid of the R and Fisher map pictures [m]")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the simulated trials")
-    parser.add_argument("--trials", type=int, default=3, help="localization trials per point")
+    parser.add_argument("--seed", type=SEED, default=0, help="seed of the simulated trials")
+    parser.add_argument("--trials", type=POSITIVE_COUNT, default=3,
+                        help="localization trials per point")
     parser.add_argument("--params", default=None,
                         help="metrics.json of another run: use its fitted parameters")
     parser.add_argument("--no-fit", action="store_true",
@@ -51,15 +54,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _configs_from(path: str) -> tuple[MeasureConfig, FisherConfig]:
+    data = read_json(path, CliError, what="--params metrics.json")
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
         lp = data["line"]["fitted"]["params"]
         fp = data["fisher"]["fitted"]["params"]
         line = replace(MeasureConfig(), k=float(lp["k"]), c=float(lp["c"]), m=float(lp["m"]))
         fisher = replace(FisherConfig(), std_ref_m=float(fp["std_ref_m"]), m=float(fp["m"]))
-    except OSError as exc:
-        raise CliError(f"--params {path}: cannot read: {exc}") from None
-    except (ValueError, KeyError, TypeError) as exc:
+    except (ValueError, KeyError, TypeError, OverflowError) as exc:
         raise CliError(
             f"--params {path}: not a fig3 metrics.json with line/fisher fitted params ({exc})"
         ) from None
@@ -88,9 +89,7 @@ def run(args: argparse.Namespace) -> int:
             raise CliError(f"--{name.replace('_', '-')}: expected a number > 0, got {v}")
     if args.trials < 1:
         raise CliError(f"--trials: expected >= 1, got {args.trials}")
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise CliError(f"--out {out}: exists and is not a directory")
+    out = check_output_dir(args.out)
     world = load_world_or_fail(args.world)
     line_cfg, fisher_cfg = (
         _configs_from(args.params) if args.params else (MeasureConfig(), FisherConfig())

@@ -20,8 +20,10 @@ from pathlib import Path
 
 import networkx as nx
 from island_msgs_py.json_io import GraphFormatError
+from island_msgs_py.limits import MAX_ISLAND_ID
 
 from island_mapping.cli import CliError
+from island_mapping.cli.args import integer, output_file
 from island_mapping.core.graph import (
     GraphError,
     GraphStore,
@@ -30,6 +32,9 @@ from island_mapping.core.graph import (
     exit_state_counts,
     salvage_store,
 )
+
+ISLAND_ID = integer(0, MAX_ISLAND_ID)
+"""An island id on the command line."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,8 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("out", help="output file; the format follows its extension")
     p = sub.add_parser("plan", help="least-weight route between two islands")
     p.add_argument("graph", help="graph file or storage directory")
-    p.add_argument("--from", dest="source", type=int, required=True, help="source island id")
-    p.add_argument("--to", dest="target", type=int, required=True, help="target island id")
+    p.add_argument("--from", dest="source", type=ISLAND_ID, required=True,
+                   help="source island id")
+    p.add_argument("--to", dest="target", type=ISLAND_ID, required=True, help="target island id")
     p = sub.add_parser("strategies", help="print the edges like the paper's Table 1")
     p.add_argument("graph", help="graph file or storage directory")
     p = sub.add_parser("salvage", help="copy the intact rows of a damaged store into a new "
@@ -106,8 +112,9 @@ def run(args: argparse.Namespace) -> int:
     if args.graph_command == "info":
         print(json.dumps(info(graph), indent=1))
     elif args.graph_command == "convert":
+        target = output_file(args.out, "OUT")
         try:
-            written = graph.save_any(args.out)
+            written = graph.save_any(target)
         except GraphFormatError as exc:
             raise CliError(str(exc)) from exc
         print(f"wrote {written} ({len(graph)} islands, {graph.num_edges} edges)")

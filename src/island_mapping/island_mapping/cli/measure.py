@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from island_mapping.cli import CliError
+from island_mapping.cli.args import METRES, coordinates
 from island_mapping.core.fisher import FisherConfig, FisherError, fisher_measure
 from island_mapping.core.fisher import translational_information as _trans_info
 from island_mapping.core.measure import MeasureConfig, MeasureError, line_measure
@@ -59,7 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--eps", type=float, default=d.eps_m, help=_help(MeasureConfig, "eps_m"))
     parser.add_argument("--eps-step", type=float, default=d.eps_step_m,
                         help=_help(MeasureConfig, "eps_step_m"))
-    parser.add_argument("--resolution", type=float, default=None,
+    parser.add_argument("--resolution", type=METRES, default=None,
                         help="m/px for image worlds (default 0.1)")
 
 
@@ -71,16 +72,8 @@ def _help(cls: type, name: str) -> str:
 
 
 def parse_point(text: str) -> tuple[float, float]:
-    """'X,Y' -> (x, y) [m], finite; CliError naming the text otherwise."""
-    parts = text.split(",")
-    if len(parts) != 2:
-        raise CliError(f"--at {text!r}: expected X,Y (two numbers separated by a comma)")
-    try:
-        x, y = float(parts[0]), float(parts[1])
-    except ValueError:
-        raise CliError(f"--at {text!r}: X and Y must be numbers") from None
-    if not (math.isfinite(x) and math.isfinite(y)):
-        raise CliError(f"--at {text!r}: X and Y must be finite")
+    """'X,Y' -> (x, y) [m], finite and within MAX_COORD_M; CliError naming the text otherwise."""
+    x, y = coordinates(text, "--at", ("X", "Y"))
     return x, y
 
 

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
-import yaml
+from island_msgs_py.inputs import load_yaml
+from island_msgs_py.json_checks import describe
 
 from island_mapping.cli import CliError
 
@@ -19,13 +21,17 @@ def parse_assignments(items: list[str], flag: str) -> dict[str, Any]:
     for item in items:
         name, sep, text = item.partition("=")
         if not sep or not name.strip():
-            raise CliError(f"{flag} {item!r}: expected NAME=VALUE")
+            raise CliError(f"{flag} {describe(item)}: expected NAME=VALUE")
         try:
-            value = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise CliError(f"{flag} {item!r}: value is not YAML ({exc})") from None
+            value = load_yaml(text, "value", CliError)
+        except CliError as exc:
+            raise CliError(f"{flag} {describe(item)}: value is not YAML ({exc})") from None
+        if value is None and not text.strip():
+            raise CliError(f"{flag} {describe(item)}: expected NAME=VALUE with a value")
         if not isinstance(value, (bool, int, float, str)):
-            raise CliError(f"{flag} {item!r}: value must be a bool, number or string")
+            raise CliError(f"{flag} {describe(item)}: value must be a bool, number or string")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise CliError(f"{flag} {describe(item)}: value must be finite")
         out[name.strip()] = value
     return out
 

@@ -27,9 +27,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from island_msgs_py.inputs import read_json
 from island_msgs_py.json_io import GraphFormatError, atomic_write_text
 
 from island_mapping.cli import CliError
+from island_mapping.cli.args import check_output_dir, number
 from island_mapping.cli.params import parse_assignments
 from island_mapping.core.graph import GraphError, TopoGraph
 
@@ -52,7 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--builder-param", action="append", default=[], metavar="NAME=VALUE",
                         help="island_builder_node parameter override, e.g. builder.e_min_m=0.5 "
                              "(VALUE parsed as YAML); repeatable")
-    parser.add_argument("--tol", type=float, default=1e-9,
+    parser.add_argument("--tol", type=number(0.0), default=1e-9,
                         help="comparison tolerance (absolute up to 1, relative above) [-]")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
     from island_mapping.cli import replay_log
@@ -79,10 +81,9 @@ def recorded_builder_params(bag: Path) -> dict[str, Any]:
     if not path.is_file():
         return {}
     try:
-        summary = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise CliError(f"{path}: not readable JSON ({exc}); pass --builder-param "
-                       "explicitly or move it away") from None
+        summary = read_json(path, CliError)
+    except CliError as exc:
+        raise CliError(f"{exc}; pass --builder-param explicitly or move it away") from None
     params = summary.get("parameters", {}) if isinstance(summary, dict) else {}
     builder = params.get("island_builder_node", {}) if isinstance(params, dict) else {}
     if not isinstance(builder, dict):
@@ -125,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     if args.reference and not reference.is_file():
         raise CliError(f"--reference {reference}: no such file")
     expected = _load_reference(reference) if reference.is_file() else None
-    out = Path(args.out)
+    out = check_output_dir(args.out)
 
     def progress(done: int, total: int) -> None:
         print(f"\rreplay: {done}/{total} messages", end="", file=sys.stderr, flush=True)

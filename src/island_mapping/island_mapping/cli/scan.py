@@ -18,6 +18,7 @@ import math
 from island_msgs_py.types import Pose2D
 
 from island_mapping.cli import CliError
+from island_mapping.cli.args import METRES, SEED, coordinates
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,24 +32,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--ideal", action="store_true", help="one ray per transducer, no noise, no specular loss"
     )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the range noise")
+    parser.add_argument("--seed", type=SEED, default=0, help="seed of the range noise")
     parser.add_argument(
-        "--resolution", type=float, default=None, help="image worlds: pixel size [m/px]"
+        "--resolution", type=METRES, default=None, help="image worlds: pixel size [m/px]"
     )
 
 
 def parse_pose(text: str) -> Pose2D:
-    """'X,Y,THETA' (m, m, rad) -> Pose2D; CliError naming the problem."""
-    parts = [p.strip() for p in text.split(",")]
-    if len(parts) != 3:
-        raise CliError(f"--pose {text!r}: expected X,Y,THETA (three numbers), got {len(parts)}")
-    try:
-        vals = [float(p) for p in parts]
-    except ValueError:
-        raise CliError(f"--pose {text!r}: not numbers") from None
-    if not all(math.isfinite(v) for v in vals):
-        raise CliError(f"--pose {text!r}: NaN or infinite value")
-    return Pose2D(*vals)
+    """'X,Y,THETA' (m, m, rad) -> Pose2D; CliError naming the problem and the limit."""
+    return Pose2D(*coordinates(text, "--pose", ("X", "Y", "THETA")))
 
 
 def run(args: argparse.Namespace) -> int:

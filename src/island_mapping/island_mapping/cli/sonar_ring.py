@@ -13,16 +13,17 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
 from island_mapping.cli import CliError
+from island_mapping.cli.args import POSITIVE_COUNT, check_output_dir
 from island_mapping.core import sonar_ring as rd
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--data", required=True, help="UCI sensor_readings_24.data")
     parser.add_argument("--out", required=True, help="output directory")
-    parser.add_argument("--limit", type=int, default=None, help="score only the first N readings")
+    parser.add_argument("--limit", type=POSITIVE_COUNT, default=None,
+                        help="score only the first N readings")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -34,9 +35,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.limit is not None and args.limit < 1:
         raise CliError(f"--limit: expected at least 1 reading, got {args.limit}")
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise CliError(f"--out {out}: exists and is not a directory")
+    out = check_output_dir(args.out)
     try:
         readings = read_sonar_ring(args.data, args.limit)
     except LogFormatError as exc:

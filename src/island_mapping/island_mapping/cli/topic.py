@@ -17,6 +17,7 @@ from typing import Any
 
 from island_mapping.bag.errors import BagError
 from island_mapping.cli import CliError
+from island_mapping.cli.args import COUNT, SECONDS
 
 DISCOVERY_WAIT_S = 2.0
 """Default wait for DDS discovery before listing (loopback: 0.02-0.25 s, up to ~3 s when the
@@ -27,14 +28,14 @@ SPIN_STEP_S = 0.05
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="topic_command", required=True, metavar="ACTION")
     p = sub.add_parser("list", help="topic names and types")
-    p.add_argument("--wait", type=float, default=DISCOVERY_WAIT_S,
+    p.add_argument("--wait", type=SECONDS, default=DISCOVERY_WAIT_S,
                    help="seconds to wait for discovery [s]")
     p = sub.add_parser("echo", help="print messages of a topic")
     p.add_argument("topic", help="topic name, e.g. /odom")
-    p.add_argument("--limit", type=int, default=None, help="exit after N messages")
-    p.add_argument("--timeout", type=float, default=None,
+    p.add_argument("--limit", type=COUNT, default=None, help="exit after N messages")
+    p.add_argument("--timeout", type=SECONDS, default=None,
                    help="give up after S seconds (default: wait forever) [s]")
-    p.add_argument("--max-array", type=int, default=None,
+    p.add_argument("--max-array", type=COUNT, default=None,
                    help="array items shown before '...' (0: all)")
 
 

@@ -15,12 +15,13 @@ import json
 import math
 
 from island_mapping.cli import CliError
+from island_mapping.cli.args import METRES, output_file
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("world", help="world file (YAML/JSON/HouseExpo/PGM/PNG) or built-in name")
     parser.add_argument(
-        "--resolution", type=float, default=None, help="image worlds: pixel size [m/px]"
+        "--resolution", type=METRES, default=None, help="image worlds: pixel size [m/px]"
     )
     parser.add_argument("--save", default=None, help="also write the world as YAML (or .json)")
 
@@ -45,8 +46,9 @@ def run(args: argparse.Namespace) -> int:
         "start_pose": [sp.x, sp.y, sp.theta],
     }
     if args.save:
+        target = output_file(args.save, "--save")
         try:
-            summary["saved"] = str(save_world(world, args.save))
+            summary["saved"] = str(save_world(world, target))
         except OSError as exc:
             raise CliError(f"--save {args.save}: cannot write ({exc})") from None
     print(json.dumps(summary))

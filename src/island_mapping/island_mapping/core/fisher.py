@@ -29,10 +29,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.raycast import RayCaster
 from island_msgs_py.types import FloatArray
 
-from island_mapping.core.rays import as_caster, as_points, cast_chunk, ray_angles, tiled_chunks
+from island_mapping.core.rays import (
+    MIN_ANGULAR_RES_DEG,
+    as_caster,
+    as_points,
+    cast_chunk,
+    ray_angles,
+    tiled_chunks,
+)
 
 # Rays per ray-cast call (bounds the temporaries of the brute-force caster).
 _RAYS_PER_CHUNK = 1 << 13
@@ -40,7 +48,7 @@ _RAYS_PER_CHUNK = 1 << 13
 _TINY_INFO = 1e-12
 
 
-class FisherError(ValueError):
+class FisherError(InputError):
     """A FisherConfig value or an argument is invalid (the message names it)."""
 
 
@@ -83,9 +91,10 @@ class FisherConfig:
             )
         if self.max_range_m <= 0 or self.std_ref_m <= 0 or self.m <= 0:
             raise FisherError("FisherConfig: max_range_m, std_ref_m and m must be > 0")
-        if not 0.0 < self.angular_res_deg <= 90.0:
+        if not MIN_ANGULAR_RES_DEG <= self.angular_res_deg <= 90.0:
             raise FisherError(
-                f"FisherConfig.angular_res_deg: must be in (0, 90] deg, got {self.angular_res_deg}"
+                f"FisherConfig.angular_res_deg: must be in [{MIN_ANGULAR_RES_DEG:g}, 90] deg "
+                f"(the limit), got {self.angular_res_deg:g}"
             )
 
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.geometry import point_segment_distance
 from island_msgs_py.types import FloatArray, LineModel
 from scipy.sparse import coo_matrix
@@ -41,7 +42,7 @@ _REASSIGN_ROUNDS = 2
 _MAX_SPLIT_DEPTH = 32
 
 
-class LineFitError(ValueError):
+class LineFitError(InputError):
     """A LineFitConfig value is invalid (the message names the field)."""
 
 

@@ -33,6 +33,7 @@ from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.geometry import (
     closest_on_segment_rows,
     closest_on_segments,
@@ -45,7 +46,7 @@ from island_msgs_py.types import FloatArray, LineModel, Pose2D, as_segments, wra
 IntArray = npt.NDArray[np.int64]
 
 
-class LocalizeError(ValueError):
+class LocalizeError(InputError):
     """A LocalizeConfig value or argument is invalid (the message names it)."""
 
 

@@ -34,6 +34,8 @@ from island_msgs_py.types import FloatArray, ModelType
 
 from island_mapping.core.fisher import FisherConfig, fisher_measure
 from island_mapping.core.rays import (
+    MAX_EPS_STEPS,
+    MIN_ANGULAR_RES_DEG,
     MeasureError,
     as_caster,
     as_points,
@@ -107,14 +109,20 @@ class MeasureConfig:
             )
         if self.max_range_m <= 0:
             raise MeasureError(f"MeasureConfig.max_range_m: must be > 0, got {self.max_range_m}")
-        if not 0.0 < self.angular_res_deg <= 90.0:
+        if not MIN_ANGULAR_RES_DEG <= self.angular_res_deg <= 90.0:
             raise MeasureError(
-                f"MeasureConfig.angular_res_deg: must be in (0, 90] deg, got {self.angular_res_deg}"
+                f"MeasureConfig.angular_res_deg: must be in [{MIN_ANGULAR_RES_DEG:g}, 90] deg "
+                f"(the limit), got {self.angular_res_deg:g}"
             )
         if self.eps_m < 0:
             raise MeasureError(f"MeasureConfig.eps_m: must be >= 0, got {self.eps_m}")
         if self.eps_step_m <= 0:
             raise MeasureError(f"MeasureConfig.eps_step_m: must be > 0, got {self.eps_step_m}")
+        if self.eps_m / self.eps_step_m > MAX_EPS_STEPS:
+            raise MeasureError(
+                f"MeasureConfig: eps_m / eps_step_m must be <= {MAX_EPS_STEPS} (the limit: "
+                f"{(2 * MAX_EPS_STEPS + 1) ** 2} samples per point), got "
+                f"{self.eps_m / self.eps_step_m:g}")
 
     @property
     def n_rays(self) -> int:
@@ -313,6 +321,10 @@ def line_measure(
     return res
 
 
+MAX_GRID_POINTS = 4_000_000
+"""Most points of one measure grid (a 200 m x 200 m world at 0.1 m) [-]."""
+
+
 def grid_points(
     bounds: tuple[float, float, float, float], resolution_m: float
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -324,6 +336,10 @@ def grid_points(
         raise MeasureError(f"resolution_m: must be > 0, got {resolution_m}")
     nx = max(1, math.floor((xmax - xmin) / resolution_m + 1e-9))
     ny = max(1, math.floor((ymax - ymin) / resolution_m + 1e-9))
+    if nx * ny > MAX_GRID_POINTS:
+        raise MeasureError(
+            f"resolution_m: {resolution_m:g} m makes a grid of {nx} x {ny} points over the "
+            f"bounds (the limit is {MAX_GRID_POINTS:,} points)")
     xs = xmin + (np.arange(nx, dtype=np.float64) + 0.5) * resolution_m
     ys = ymin + (np.arange(ny, dtype=np.float64) + 0.5) * resolution_m
     gx, gy = np.meshgrid(xs, ys, indexing="xy")

@@ -14,6 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.raycast import RayCaster, RayHits, SegmentIndex, raycast
 from island_msgs_py.types import FloatArray, as_segments
 
@@ -27,7 +28,13 @@ _TILE_MIN_SEGMENTS = 12
 _TILE_MAX_SUBSET = 64
 
 
-class MeasureError(ValueError):
+MIN_ANGULAR_RES_DEG = 0.01
+"""Finest angular resolution of the measures' rays [deg]: 36,000 rays per point."""
+MAX_EPS_STEPS = 50
+"""Most averaging steps per side of R(p, eps) (eq. 4): (2 x 50 + 1)^2 samples per point."""
+
+
+class MeasureError(InputError):
     """Bad input to the measure (the message names the argument and the problem)."""
 
 

@@ -25,6 +25,7 @@ from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.geometry import compose_poses, relative_poses
 
 FloatArray = npt.NDArray[np.float64]
@@ -43,7 +44,7 @@ OFFSET_ANCHORS = 3
 SCAN_MATCH_TOLERANCE_S = 0.010
 
 
-class RelationsError(ValueError):
+class RelationsError(InputError):
     """Inconsistent relation-scoring input; the message names what was wrong."""
 
 

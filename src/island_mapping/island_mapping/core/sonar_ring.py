@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.types import ModelType
 
 from island_mapping.core.lines import LineFitConfig, fit_lines
@@ -21,7 +22,7 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 
-class SonarRingError(ValueError):
+class SonarRingError(InputError):
     """Bad ring geometry or reading; the message names what was wrong."""
 
 

@@ -12,13 +12,14 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from island_msgs_py.errors import InputError
 from island_msgs_py.geometry import ranges_to_points, to_frame
 from island_msgs_py.types import FloatArray, Island, Pose2D
 
 from island_mapping.core.localize import LocalizeConfig, localize, point_to_line_config
 
 
-class TrackerError(ValueError):
+class TrackerError(InputError):
     """A TrackerConfig value is invalid (the message names it)."""
 
 

@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.geometry import clearance_m, ranges_to_points
 from island_msgs_py.types import FloatArray, Pose2D
 from island_sim.core.sonar import SonarConfig, SonarModel
@@ -70,7 +71,7 @@ _FISHER_LOG_HI = np.log([1.0, 8.0])
 _SURROGATE_WIDTH = 0.05
 
 
-class ValidationError(ValueError):
+class ValidationError(InputError):
     """A ValidationConfig value or argument is invalid (the message names it)."""
 
 

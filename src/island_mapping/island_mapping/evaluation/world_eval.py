@@ -30,6 +30,7 @@ from typing import Any
 
 import networkx as nx
 import numpy as np
+from island_msgs_py.errors import InputError
 from island_msgs_py.json_io import GraphFormatError, pose_from_dict
 from island_msgs_py.types import Pose2D
 from island_sim.core.freespace import AllowedFn, FreeSpaceError, known_free_allowed
@@ -44,7 +45,7 @@ ROUNDING = 3
 """Decimals of the figures in the JSON form."""
 
 
-class WorldEvalError(ValueError):
+class WorldEvalError(InputError):
     """The map or its run record cannot be evaluated (names what is missing or wrong)."""
 
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from island_msgs_py.errors import InputError
 
-class LogFormatError(ValueError):
+
+class LogFormatError(InputError):
     """A log file could not be read or parsed; the message names the file, the line number and
     the problem."""

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.geometry import from_frame
 from island_msgs_py.types import Pose2D
 
@@ -45,7 +46,7 @@ SONAR_LIKE_HALF_WINDOW = 4
 routine also gathers several ring readings)."""
 
 
-class OfflineError(ValueError):
+class OfflineError(InputError):
     """Bad offline-builder input; the message names the argument and the problem."""
 
 

@@ -31,13 +31,20 @@ from typing import Any
 from geometry_msgs.msg import TwistStamped
 from island_msgs_py.conversions import (
     ConversionError,
+    check_stamp,
     command_to_twist_stamped,
     odometry_to_pose,
     scan_to_arrays,
     time_to_ns,
 )
 from island_msgs_py.qos import STREAM_QOS
-from island_msgs_py.ros_params import BadMessageLog, declare_config, log_ready, run_node
+from island_msgs_py.ros_params import (
+    BadMessageLog,
+    clock_ns,
+    declare_config,
+    log_ready,
+    run_node,
+)
 from island_msgs_py.types import ControlStrategy, IslandTypeError
 from nav_msgs.msg import Odometry
 from rcl_interfaces.srv import SetParameters
@@ -129,6 +136,7 @@ class IslandBuilderNode(Node):
     def _on_odom(self, msg: Odometry) -> None:
         try:
             pose, cov, t_ns = odometry_to_pose(msg)
+            check_stamp(t_ns, clock_ns(self), "/odom")
             self._act(self.sync.odometry(t_ns, pose, cov))
         except (ConversionError, ValueError) as exc:
             self._warn("/odom", exc)
@@ -136,6 +144,7 @@ class IslandBuilderNode(Node):
     def _on_truth(self, msg: Odometry) -> None:
         try:
             pose, _, t_ns = odometry_to_pose(msg)
+            check_stamp(t_ns, clock_ns(self), "/ground_truth")
             self.sync.ground_truth(t_ns, pose)
         except ConversionError as exc:
             self._warn("/ground_truth", exc)
@@ -150,6 +159,7 @@ class IslandBuilderNode(Node):
         try:
             ranges, angles = scan_to_arrays(msg)
             t_ns = time_to_ns(msg.header.stamp)
+            check_stamp(t_ns, clock_ns(self), "/sonar/scan")
             self._act(self.sync.scan(t_ns, ranges, angles))
         except (ConversionError, ValueError) as exc:
             self._warn("/sonar/scan", exc)

@@ -15,14 +15,15 @@ it started. Every `tracker.*` parameter is read-only.
 
 from __future__ import annotations
 
-import json
 import sys
 from collections.abc import Sequence
 from typing import Any
 
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from island_msgs_py.conversions import ns_to_time
+from island_msgs_py.inputs import load_json
 from island_msgs_py.json_io import GraphFormatError
+from island_msgs_py.limits import MAX_EVENT_JSON_BYTES
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, declare_config, log_ready, run_node
 from island_msgs_py.scan_inputs import subscribe_paired_scans
@@ -57,7 +58,7 @@ class IslandLocalizerNode(Node):
 
     def _on_event(self, msg: String) -> None:
         try:
-            d = json.loads(msg.data)
+            d = load_json(msg.data, "/island_builder/events", max_bytes=MAX_EVENT_JSON_BYTES)
             if not isinstance(d, dict) or d.get("kind") != "island_accepted":
                 return
             island = json_io.island_from_dict(d.get("island"), "event.island")

@@ -25,8 +25,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from island_msgs_py.json_checks import describe
+from island_msgs_py.limits import MAX_INT_DIGITS
 from island_msgs_py.types import Pose2D
 
+from island_msgs_py import inputs
 from island_sim.core.importers import rectangles_to_segments
 from island_sim.core.world import World, WorldError
 
@@ -317,22 +320,25 @@ def _start_pose(xs: list[float], ys: list[float], edges: list[tuple[int, int]],
 def parse_spec(spec: str) -> tuple[str, int, float]:
     """(kind, seed, scale) of `gen:office:seed=3,scale=2`; WorldError naming what is wrong."""
     if not spec.startswith(SPEC_PREFIX):
-        raise WorldError(f"{spec!r}: a generated world spec starts with {SPEC_PREFIX!r}")
+        raise WorldError(f"{describe(spec)}: a generated world spec starts with {SPEC_PREFIX!r}")
     kind, _, params = spec[len(SPEC_PREFIX):].partition(":")
     if kind != "office":
-        raise WorldError(f"{spec!r}: unknown generated world kind {kind!r} (known: office)")
+        raise WorldError(f"{describe(spec)}: unknown generated world kind {describe(kind)} "
+                         "(known: office)")
     seed, scale = 1, 1.0
     for item in filter(None, (p.strip() for p in params.split(","))):
         key, eq, value = item.partition("=")
         if key not in ("seed", "scale") or not eq:
-            raise WorldError(f"{spec!r}: unknown parameter {item!r} (use seed=N, scale=S)")
+            raise WorldError(f"{describe(spec)}: unknown parameter {describe(item)} (use seed=N, "
+                             "scale=S)")
         try:
             if key == "seed":
-                seed = int(value)
+                seed = inputs.parse_int(value, f"{describe(spec)}: seed", WorldError)
             else:
-                scale = float(value)
-        except ValueError:
-            raise WorldError(f"{spec!r}: {key} must be a number, got {value!r}") from None
+                scale = float(value)  # its range: generate_office
+        except ValueError:  # WorldError is one
+            raise WorldError(f"{describe(spec)}: {key} must be a number of at most "
+                             f"{MAX_INT_DIGITS} digits, got {describe(value)}") from None
     return kind, seed, scale
 
 

@@ -11,13 +11,14 @@ import math
 from dataclasses import dataclass, field
 from enum import StrEnum
 
+from island_msgs_py.errors import InputError
 from island_msgs_py.hall_perception import HallPerceptionConfig
 
 # Parameter range of the config's distances, speeds, gains and times (all must be >= 0).
 _NON_NEGATIVE = (0.0, math.inf)
 
 
-class HallFollowerError(ValueError):
+class HallFollowerError(InputError):
     """Bad configuration or bad `update` input; the message names the field."""
 
 

@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import struct
 import zlib
@@ -21,11 +22,24 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 from island_msgs_py.geometry import clearance_m, closest_on_segment_rows
-from island_msgs_py.types import FloatArray
+from island_msgs_py.limits import (
+    MAX_COORD_M,
+    MAX_IMAGE_BYTES,
+    MAX_IMAGE_FILE_BYTES,
+    MAX_WORLD_SEGMENTS,
+)
+from island_msgs_py.types import FloatArray, Pose2D
 from scipy import ndimage
 
-from island_sim.core.freespace import FreeSpaceError, default_start_pose, known_free_allowed
+from island_msgs_py import inputs
+from island_sim.core.freespace import (
+    FreeSpaceConfig,
+    FreeSpaceError,
+    default_start_pose,
+    known_free_allowed,
+)
 from island_sim.core.world import (
+    MAX_NAME_CHARS,
     World,
     WorldError,
     enclosed_start_pose,
@@ -36,6 +50,7 @@ from island_sim.core.world import (
 BoolArray = npt.NDArray[np.bool_]
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_IHDR_BYTES = 13  # width, height (4 bytes each), depth, colour type, compression, filter, interlace
 
 
 @dataclass(frozen=True)
@@ -85,9 +100,20 @@ class ImageImportConfig:
 # ----------------------------------------------------------------------------- image readers
 
 
+def _check_image_size(path: Path, kind: str, width: int, height: int, bytes_per_px: int) -> None:
+    """WorldError naming the file unless the declared size is positive and decodes to at most
+    MAX_IMAGE_BYTES."""
+    if width <= 0 or height <= 0:
+        raise WorldError(f"{path}: bad {kind} size {width}x{height} (both must be > 0)")
+    if width * height * bytes_per_px > MAX_IMAGE_BYTES:
+        raise WorldError(f"{path}: image of {width}x{height} pixels ({bytes_per_px} bytes each) "
+                         f"decodes to {width * height * bytes_per_px} bytes, the limit is "
+                         f"{MAX_IMAGE_BYTES}")
+
+
 def read_pgm(path: Path) -> npt.NDArray[np.uint8]:
     """(H, W) grey levels 0-255 of a P5 (binary) or P2 (ASCII) PGM; row 0 is the top."""
-    data = _read_bytes(path)
+    data = inputs.read_bytes(path, MAX_IMAGE_FILE_BYTES, WorldError, "PGM image")
     magic = data[:2]
     if magic not in (b"P5", b"P2"):
         raise WorldError(f"{path}: not a PGM image (magic {magic!r}, expected P5 or P2)")
@@ -104,15 +130,16 @@ def read_pgm(path: Path) -> npt.NDArray[np.uint8]:
             pos = len(data) if nl < 0 else nl + 1
             continue
         start = pos
-        while pos < len(data) and not data[pos : pos + 1].isspace():
+        while pos < len(data) and not data[pos : pos + 1].isspace() and pos - start <= 32:
             pos += 1
         tokens.append(data[start:pos])
-    try:
-        width, height, maxval = (int(t) for t in tokens)
-    except ValueError as exc:
-        raise WorldError(f"{path}: bad PGM header {tokens!r}") from exc
-    if width <= 0 or height <= 0 or not 0 < maxval < 65536:
-        raise WorldError(f"{path}: bad PGM size {width}x{height} or maxval {maxval}")
+    names = ("width", "height", "maxval")
+    width, height, maxval = (
+        inputs.parse_int(tok.decode("latin-1"), f"{path}: bad PGM header {name}", WorldError)
+        for name, tok in zip(names, tokens, strict=True))
+    if not 0 < maxval < 65536:
+        raise WorldError(f"{path}: PGM maxval must be in 1..65535, got {maxval}")
+    _check_image_size(path, "PGM", width, height, 2 if maxval > 255 else 1)
     count = width * height
     if magic == b"P5":
         pos += 1  # exactly one whitespace byte after maxval
@@ -128,13 +155,14 @@ def read_pgm(path: Path) -> npt.NDArray[np.uint8]:
             raise WorldError(f"{path}: bad ASCII PGM pixel value") from exc
         if img.size < count:
             raise WorldError(f"{path}: PGM pixel data truncated ({img.size} of {count} values)")
+        if not np.all(np.isfinite(img)):
+            raise WorldError(f"{path}: ASCII PGM pixel value NaN or infinite")
     scaled = np.clip(np.round(img * (255.0 / maxval)), 0, 255).astype(np.uint8)
     return scaled.reshape(height, width)
 
 
-def read_png(path: Path) -> npt.NDArray[np.uint8]:
-    """(H, W) grey levels 0-255 of a non-interlaced 8/16-bit PNG (grey, RGB, palette, +alpha)."""
-    data = _read_bytes(path)
+def _png_chunks(path: Path, data: bytes) -> tuple[tuple[int, ...], bytes | None, bytes]:
+    """(IHDR fields, PLTE body or None, the IDAT bodies joined) of a PNG file's bytes."""
     if not data.startswith(_PNG_SIGNATURE):
         raise WorldError(f"{path}: not a PNG image (bad signature)")
     pos = len(_PNG_SIGNATURE)
@@ -148,8 +176,13 @@ def read_png(path: Path) -> npt.NDArray[np.uint8]:
         if len(body) < length:
             raise WorldError(f"{path}: PNG chunk {ctype!r} truncated")
         pos += 12 + length
+        if header is None and ctype != b"IHDR":
+            raise WorldError(f"{path}: PNG chunk {ctype!r} before IHDR (IHDR must be first)")
         if ctype == b"IHDR":
-            header = struct.unpack(">IIBBBBB", body[:13])
+            if len(body) != _IHDR_BYTES:
+                raise WorldError(f"{path}: PNG IHDR chunk of {len(body)} bytes, expected "
+                                 f"{_IHDR_BYTES}")
+            header = struct.unpack(">IIBBBBB", body)
         elif ctype == b"PLTE":
             palette = body
         elif ctype == b"IDAT":
@@ -158,6 +191,25 @@ def read_png(path: Path) -> npt.NDArray[np.uint8]:
             break
     if header is None:
         raise WorldError(f"{path}: PNG without IHDR chunk")
+    return header, palette, bytes(idat)
+
+
+def _png_inflate(path: Path, idat: bytes, expected: int) -> bytes:
+    """The image data of `expected` bytes, inflated no further than that."""
+    inflater = zlib.decompressobj()
+    try:
+        raw = inflater.decompress(idat, expected)
+    except zlib.error as exc:
+        raise WorldError(f"{path}: corrupt PNG image data ({exc})") from exc
+    if len(raw) < expected:
+        raise WorldError(f"{path}: PNG image data truncated ({len(raw)} of {expected} bytes)")
+    return raw
+
+
+def read_png(path: Path) -> npt.NDArray[np.uint8]:
+    """(H, W) grey levels 0-255 of a non-interlaced 8/16-bit PNG (grey, RGB, palette, +alpha)."""
+    data = inputs.read_bytes(path, MAX_IMAGE_FILE_BYTES, WorldError, "PNG image")
+    header, palette, idat = _png_chunks(path, data)
     width, height, depth, color, _comp, _filt, interlace = header
     channels = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}.get(color)
     if channels is None or depth not in (8, 16) or (color == 3 and depth != 8):
@@ -167,14 +219,10 @@ def read_png(path: Path) -> npt.NDArray[np.uint8]:
         )
     if interlace:
         raise WorldError(f"{path}: interlaced PNG is not supported")
-    try:
-        raw = zlib.decompress(bytes(idat))
-    except zlib.error as exc:
-        raise WorldError(f"{path}: corrupt PNG image data ({exc})") from exc
     bpp = channels * depth // 8
+    _check_image_size(path, "PNG", width, height, bpp)
     stride = width * bpp
-    if len(raw) < height * (stride + 1):
-        raise WorldError(f"{path}: PNG image data truncated")
+    raw = _png_inflate(path, idat, height * (stride + 1))
     rows = _png_unfilter(np.frombuffer(raw, dtype=np.uint8), height, stride, bpp, path)
     if depth == 16:
         px = rows.reshape(height, width, channels, 2)[..., 0].astype(np.float64)  # high bytes
@@ -183,6 +231,8 @@ def read_png(path: Path) -> npt.NDArray[np.uint8]:
     if color == 3:
         if palette is None:
             raise WorldError(f"{path}: palette PNG without PLTE chunk")
+        if not palette or len(palette) % 3:
+            raise WorldError(f"{path}: PNG palette of {len(palette)} bytes (3 per colour)")
         pal = np.frombuffer(palette, dtype=np.uint8).reshape(-1, 3).astype(np.float64)
         idx = px[..., 0].astype(np.int64)
         if idx.max() >= pal.shape[0]:
@@ -232,13 +282,6 @@ def _png_unfilter(
         out[y] = cur.astype(np.uint8)
         prev = cur
     return out
-
-
-def _read_bytes(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
-    except OSError as exc:
-        raise WorldError(f"{path}: cannot read ({exc.strerror or exc})") from exc
 
 
 # ----------------------------------------------------------------------------- contour tracing
@@ -404,6 +447,33 @@ def _douglas_peucker(pts: FloatArray, tol: float) -> FloatArray:
 # ----------------------------------------------------------------------------- importers
 
 
+START_SEARCH_MAX_CELLS = 4_000_000
+"""Largest raster of the default start-pose search of an imported world [cells] (~350 MB); a
+bigger world is searched on a coarser raster (Willow at 0.1 m: 0.34 M cells)."""
+_FALLBACK_SEARCH_PAIRS = 100_000_000
+"""Most (point x wall) pairs of the fallback start search of a plan without room for the
+robot: a bigger plan is searched on a coarser grid [-]."""
+
+
+def start_search_config(world: World) -> FreeSpaceConfig:
+    """The free-space raster of a world's default start-pose search: the default one, coarsened
+    until it has at most START_SEARCH_MAX_CELLS cells."""
+    base = FreeSpaceConfig()
+    x0, y0, x1, y1 = world.bounds
+    cells = ((x1 - x0 + 2 * base.margin_m) / base.resolution_m + 1) * (
+        (y1 - y0 + 2 * base.margin_m) / base.resolution_m + 1)
+    if cells <= START_SEARCH_MAX_CELLS:
+        return base
+    factor = math.sqrt(cells / START_SEARCH_MAX_CELLS) * 1.01
+    return dataclasses.replace(base, resolution_m=base.resolution_m * factor)
+
+
+def _naming(path: Path, exc: WorldError) -> WorldError:
+    """`exc` with the file name in front when its message does not start with it."""
+    text = str(exc)
+    return exc if text.startswith(str(path)) else WorldError(f"{path}: {text}")
+
+
 def import_image(path: str | Path, config: ImageImportConfig | None = None) -> World:
     """World from an occupancy image (.pgm/.png): dark pixels are walls, origin lower-left."""
     cfg = config if config is not None else ImageImportConfig()
@@ -415,32 +485,40 @@ def import_image(path: str | Path, config: ImageImportConfig | None = None) -> W
         img = read_png(p)
     else:
         raise WorldError(f"{p}: unknown image extension {p.suffix!r} (use .pgm or .png)")
-    grid = img[::-1, :].astype(np.float64)  # row 0 at the bottom
-    occ_prob = (255.0 - grid) / 255.0
-    occupied = occ_prob > cfg.occupied_thresh
+    grey = img[::-1, :]  # row 0 at the bottom
+    occ_prob = (255.0 - np.arange(256, dtype=np.float64)) / 255.0  # per grey level
+    occupied = (occ_prob > cfg.occupied_thresh)[grey]
     if not np.any(occupied):
         raise WorldError(f"{p}: no occupied (dark) pixels, so no walls")
     origin = (cfg.origin_x_m, cfg.origin_y_m)
     segs = grid_to_segments(occupied, cfg.resolution_m, origin, cfg.simplify_tol_px)
-    free = occ_prob < cfg.free_thresh
-    world = World(segs, name=p.stem)
+    del occupied
+    free = (occ_prob < cfg.free_thresh)[grey]
+    try:
+        return World(segs, name=p.stem, start_pose=_image_start(segs, p.stem, free, cfg))
+    except WorldError as exc:
+        raise _naming(p, exc) from None
+
+
+def _image_start(segs: FloatArray, name: str, free: BoolArray, cfg: ImageImportConfig) -> Pose2D:
+    """The start pose of an image world: in its largest enclosed known-free region, else at the
+    known-free pixel farthest from anything not known free."""
+    world = World(segs, name=name)
     if not np.any(free):
-        return World(segs, name=p.stem, start_pose=enclosed_start_pose(world))
+        return enclosed_start_pose(world)
+    origin = (cfg.origin_x_m, cfg.origin_y_m)
     try:  # in the largest enclosed known-free region, not in a closed room
-        start = default_start_pose(world, allowed=known_free_allowed(free, cfg.resolution_m,
-                                                                     origin))
-        return World(world.segments, name=p.stem, start_pose=start)
+        return default_start_pose(world, start_search_config(world),
+                                  allowed=known_free_allowed(free, cfg.resolution_m, origin))
     except FreeSpaceError:
         pass  # no room for the robot anywhere: the freest pixel
     # Clearance of free pixels from anything that is not known free [m].
     clearance_px = ndimage.distance_transform_edt(np.pad(free, 1))[1:-1, 1:-1]
-    iy, ix = np.nonzero(free)
-    centres = np.stack(
-        [origin[0] + (ix + 0.5) * cfg.resolution_m, origin[1] + (iy + 0.5) * cfg.resolution_m],
-        axis=1,
-    )
-    start = start_pose_from_clearance(world, centres, clearance_px[iy, ix] * cfg.resolution_m)
-    return World(world.segments, name=p.stem, start_pose=start)
+    best = int(np.argmax(np.where(free, clearance_px, -1.0)))  # the first, row by row
+    iy, ix = divmod(best, free.shape[1])
+    centre = np.array([[origin[0] + (ix + 0.5) * cfg.resolution_m,
+                        origin[1] + (iy + 0.5) * cfg.resolution_m]])
+    return start_pose_from_clearance(world, centre, clearance_px[iy, ix:ix + 1] * cfg.resolution_m)
 
 
 def import_houseexpo(path: str | Path, data: dict[str, Any] | None = None) -> World:
@@ -456,34 +534,51 @@ def import_houseexpo(path: str | Path, data: dict[str, Any] | None = None) -> Wo
     segs = segs[np.any(segs[:, 0:2] != segs[:, 2:4], axis=1)]  # repeated vertices
     if segs.shape[0] < 3:
         raise WorldError(f"{p}: 'verts' has fewer than 3 distinct points")
-    name = str(data.get("id", p.stem)) or p.stem
+    raw_name = data.get("id", p.stem)
+    name = str(raw_name)[:MAX_NAME_CHARS] if isinstance(raw_name, str | int) else p.stem
+    try:
+        return World(segs, name=name or p.stem, start_pose=_plan_start(segs, verts, name))
+    except WorldError as exc:
+        raise _naming(p, exc) from None
+
+
+def _plan_start(segs: FloatArray, verts: FloatArray, name: str) -> Pose2D:
+    """A plan's start pose: in its largest enclosed free region, else the interior grid point
+    farthest from the walls."""
     world = World(segs, name=name)
     try:  # in the largest enclosed free region
-        return World(world.segments, name=name, start_pose=default_start_pose(world))
+        return default_start_pose(world, start_search_config(world))
     except FreeSpaceError:
         pass  # no room for the robot anywhere: the interior point farthest from the walls
     x0, y0, x1, y1 = world.bounds
-    step = 0.1
+    points = max(1000, _FALLBACK_SEARCH_PAIRS // verts.shape[0])
+    step = max(0.1, math.sqrt((x1 - x0) * (y1 - y0) / points))
     gx, gy = np.meshgrid(np.arange(x0 + step / 2, x1, step), np.arange(y0 + step / 2, y1, step))
     pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
     inside = _inside_polygon(pts, verts)
     pts = pts[inside]
-    start = start_pose_from_clearance(world, pts, clearance_m(pts, segs))
-    return World(world.segments, name=name, start_pose=start)
+    return start_pose_from_clearance(world, pts, clearance_m(pts, segs))
 
 
 def _as_points(value: object, path: Path, key: str) -> FloatArray:
     if value is None:
         raise WorldError(f"{path}: missing key {key!r}")
+    if isinstance(value, list | tuple) and len(value) > MAX_WORLD_SEGMENTS:
+        raise WorldError(f"{path}: {key!r} has {len(value)} points, the limit is "
+                         f"{MAX_WORLD_SEGMENTS}")
     try:
         arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise WorldError(f"{path}: {key!r} must be a list of [x, y] numbers") from exc
     if arr.ndim != 2 or arr.shape[1] != 2:
         raise WorldError(f"{path}: {key!r} must be a list of [x, y] pairs, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         bad = int(np.argwhere(~np.isfinite(arr))[0][0])
         raise WorldError(f"{path}: {key!r} point {bad} has a NaN or infinite coordinate")
+    if arr.size and float(np.max(np.abs(arr))) > MAX_COORD_M:
+        bad = int(np.argwhere(np.abs(arr) > MAX_COORD_M)[0][0])
+        raise WorldError(f"{path}: {key!r} point {bad}: |coordinate| must be <= {MAX_COORD_M:g} m "
+                         f"(the limit), got {float(np.max(np.abs(arr[bad]))):g}")
     return arr
 
 

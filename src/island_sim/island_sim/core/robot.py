@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.geometry import clearance_m
 from island_msgs_py.types import FloatArray, Pose2D, wrap_angle
 
@@ -27,7 +28,7 @@ _SMALL_TURN_RAD = 1e-9
 _CLEARANCE_EPS_M = 1e-9
 
 
-class RobotError(ValueError):
+class RobotError(InputError):
     """A robot/odometry configuration or step argument is invalid; the message names the field."""
 
 

@@ -22,12 +22,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.types import FloatArray, Pose2D
 
 from island_sim.core.world import World
 
 
-class SonarError(ValueError):
+class SonarError(InputError):
     """A sonar configuration or call argument is invalid; the message names the field."""
 
 

@@ -18,15 +18,28 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.errors import InputError
 from island_msgs_py.geometry import clearance_m
+from island_msgs_py.json_checks import describe
+from island_msgs_py.limits import MAX_COORD_M, MAX_WORLD_FILE_BYTES, MAX_WORLD_SEGMENTS
 from island_msgs_py.raycast import RaycastError, RayHits, SegmentIndex
 from island_msgs_py.types import FloatArray, Pose2D
 
+from island_msgs_py import inputs
+
 # Bearings tried when choosing the start heading (the longest free ray wins) [-].
 _START_BEARINGS = 72
+# Most grid points of the start-pose search (enclosed_start_pose) [-].
+_START_GRID_POINTS = 10_000
+# Most (grid point x wall) pairs of the start-pose search: a world of more than
+# _START_SEARCH_PAIRS / _START_GRID_POINTS walls is searched on a coarser grid, so the search
+# costs about the same whatever the world's size (200,000 walls: 1,000 points) [-].
+_START_SEARCH_PAIRS = 100_000_000
+MAX_NAME_CHARS = 256
+"""Longest world name [characters]."""
 
 
-class WorldError(ValueError):
+class WorldError(InputError):
     """A world file or world description is malformed; the message names the file and problem."""
 
 
@@ -56,6 +69,10 @@ class World:
         if not np.all(np.isfinite(arr)):
             bad = int(np.argwhere(~np.isfinite(arr))[0][0])
             raise WorldError(f"world {self.name!r}: segment {bad} has a NaN or infinite coordinate")
+        if arr.size and float(np.max(np.abs(arr))) > MAX_COORD_M:
+            bad = int(np.argwhere(np.abs(arr) > MAX_COORD_M)[0][0])
+            raise WorldError(f"world {self.name!r}: segment {bad} has a coordinate beyond "
+                             f"{MAX_COORD_M:g} m (the limit)")
         arr.setflags(write=False)
         object.__setattr__(self, "segments", arr)
 
@@ -124,8 +141,9 @@ def enclosed_start_pose(world: World, step_m: float = 0.25) -> Pose2D:
     if world.segments.shape[0] == 0:
         return Pose2D(0.0, 0.0, 0.0)
     x0, y0, x1, y1 = world.bounds
-    nx = max(2, min(100, int((x1 - x0) / step_m)))
-    ny = max(2, min(100, int((y1 - y0) / step_m)))
+    side = math.isqrt(min(_START_GRID_POINTS, _START_SEARCH_PAIRS // world.segments.shape[0]))
+    nx = max(2, min(side, int((x1 - x0) / step_m)))
+    ny = max(2, min(side, int((y1 - y0) / step_m)))
     gx, gy = np.meshgrid(np.linspace(x0, x1, nx + 2)[1:-1], np.linspace(y0, y1, ny + 2)[1:-1])
     pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
     dirs = np.linspace(0.0, 2.0 * math.pi, 8, endpoint=False)
@@ -142,66 +160,63 @@ def enclosed_start_pose(world: World, step_m: float = 0.25) -> Pose2D:
 
 
 def read_structured(path: Path) -> dict[str, Any]:
-    """The top-level mapping of a YAML or JSON file (yaml.safe_load / json); WorldError if not."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise WorldError(f"{path}: cannot read ({exc})") from exc
-    try:
-        if path.suffix.lower() == ".json":
-            data = json.loads(text)
-        else:
-            import yaml  # local: only world files need it
+    """The top-level mapping of a YAML or JSON world file, within the limits of
+    `island_msgs_py.inputs` (size, UTF-8, nesting, aliases, integer length); WorldError if not."""
+    return inputs.read_structured(path, WorldError, MAX_WORLD_FILE_BYTES, "world file")
 
-            data = yaml.safe_load(text)
-    except Exception as exc:  # json.JSONDecodeError, yaml.YAMLError
-        raise WorldError(f"{path}: not valid {path.suffix.lstrip('.').upper()}: {exc}") from exc
-    if not isinstance(data, dict):
-        raise WorldError(f"{path}: expected a mapping at the top level, got {type(data).__name__}")
-    return data
+
+def _coordinates(row: Any, where: str, form: str) -> list[float]:
+    """The numbers of `form` (`[x1, y1, x2, y2]`), finite and within MAX_COORD_M (booleans are
+    no numbers); WorldError naming `where` otherwise."""
+    count = form.count(",") + 1
+    if not isinstance(row, list | tuple) or len(row) != count:
+        raise WorldError(f"{where} must be {form}, got {describe(row)}")
+    vals = []
+    for j, v in enumerate(row):
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            raise WorldError(f"{where} has a non-numeric value at {j}: {describe(v)}")
+        try:
+            f = float(v)
+        except OverflowError:
+            f = math.inf
+        if not math.isfinite(f):
+            raise WorldError(f"{where} has a NaN or infinite value at {j}: {describe(v)}")
+        if abs(f) > MAX_COORD_M:
+            raise WorldError(f"{where}: |value {j}| must be <= {MAX_COORD_M:g} m (the limit), "
+                             f"got {f:g}")
+        vals.append(f)
+    return vals
 
 
 def world_from_dict(data: dict[str, Any], source: str = "<dict>") -> World:
     """A World from {'segments': [[x1, y1, x2, y2], ...] [m], 'name'?, 'start_pose'?: [x, y, th]}.
 
-    Errors name `source` and the problem (missing key, wrong shape, NaN/inf, zero length).
+    Errors name `source`, the field and the limit (missing key, wrong shape, NaN/inf, a
+    coordinate beyond MAX_COORD_M, more than MAX_WORLD_SEGMENTS segments, zero length).
     """
     if "segments" not in data:
         raise WorldError(f"{source}: missing key 'segments'")
     raw = data["segments"]
     if not isinstance(raw, list | tuple):
-        raise WorldError(f"{source}: 'segments' must be a list of [x1, y1, x2, y2]")
+        raise WorldError(f"{source}: 'segments' must be a list of [x1, y1, x2, y2], got "
+                         f"{describe(raw)}")
+    if len(raw) > MAX_WORLD_SEGMENTS:
+        raise WorldError(f"{source}: {len(raw)} segments, the limit is {MAX_WORLD_SEGMENTS}")
     rows = []
     for i, row in enumerate(raw):
-        if not isinstance(row, list | tuple) or len(row) != 4:
-            raise WorldError(f"{source}: segment {i} must be [x1, y1, x2, y2], got {row!r}")
-        try:
-            vals = [float(v) for v in row]
-        except (TypeError, ValueError):
-            raise WorldError(f"{source}: segment {i} has a non-numeric value: {row!r}") from None
-        if any(isinstance(v, bool) for v in row):
-            raise WorldError(f"{source}: segment {i} has a boolean value: {row!r}")
-        if not all(math.isfinite(v) for v in vals):
-            raise WorldError(f"{source}: segment {i} has a NaN or infinite coordinate: {row!r}")
+        vals = _coordinates(row, f"{source}: segment {i}", "[x1, y1, x2, y2]")
         if vals[0] == vals[2] and vals[1] == vals[3]:
-            raise WorldError(f"{source}: segment {i} has zero length: {row!r}")
+            raise WorldError(f"{source}: segment {i} has zero length: {describe(row)}")
         rows.append(vals)
     if not rows:
         raise WorldError(f"{source}: 'segments' is empty")
     name = data.get("name", Path(source).stem if source != "<dict>" else "world")
-    if not isinstance(name, str) or not name:
-        raise WorldError(f"{source}: 'name' must be a non-empty string, got {name!r}")
+    if not isinstance(name, str) or not name or len(name) > MAX_NAME_CHARS:
+        raise WorldError(f"{source}: 'name' must be a string of 1 to {MAX_NAME_CHARS} "
+                         f"characters, got {describe(name)}")
     segments = np.array(rows, dtype=np.float64)
     if "start_pose" in data and data["start_pose"] is not None:
-        sp = data["start_pose"]
-        if not isinstance(sp, list | tuple) or len(sp) != 3:
-            raise WorldError(f"{source}: 'start_pose' must be [x, y, theta], got {sp!r}")
-        try:
-            x, y, th = (float(v) for v in sp)
-        except (TypeError, ValueError):
-            raise WorldError(f"{source}: 'start_pose' has a non-numeric value: {sp!r}") from None
-        if not all(math.isfinite(v) for v in (x, y, th)):
-            raise WorldError(f"{source}: 'start_pose' has a NaN or infinite value: {sp!r}")
+        x, y, th = _coordinates(data["start_pose"], f"{source}: start_pose", "[x, y, theta]")
         return World(segments, name=name, start_pose=Pose2D(x, y, th))
     world = World(segments, name=name)
     return World(world.segments, name=name, start_pose=enclosed_start_pose(world))

@@ -7,12 +7,22 @@ The one dispatch over the world sources: built-ins (`worlds_builtin`), YAML/JSON
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
+from island_msgs_py.json_checks import describe
+from island_msgs_py.limits import MAX_PATH_CHARS
+
 from island_sim.core import importers, worlds_builtin
 from island_sim.core.generate import SPEC_PREFIX, generated_world
-from island_sim.core.world import World, WorldError, read_structured, world_from_dict
+from island_sim.core.world import (
+    MAX_NAME_CHARS,
+    World,
+    WorldError,
+    read_structured,
+    world_from_dict,
+)
 
 _STRUCTURED_SUFFIXES = (".yaml", ".yml", ".json")
 _IMAGE_SUFFIXES = (".pgm", ".png")
@@ -34,7 +44,11 @@ def load_world(spec: str | Path, resolution_m: float | None = None) -> World:
         return generated_world(spec)
     path = Path(spec)
     suffix = path.suffix.lower()
-    if not path.exists():
+    try:
+        exists = path.exists()
+    except OSError as exc:  # e.g. a name too long for the file system
+        raise WorldError(f"{describe(str(spec))}: cannot read: {exc.strerror or exc}") from None
+    if not exists:
         if not suffix:
             raise WorldError(
                 f"{spec}: neither a built-in world "
@@ -64,22 +78,49 @@ def load_world(spec: str | Path, resolution_m: float | None = None) -> World:
 
 
 def _load_map_yaml(path: Path, data: dict[str, Any], resolution_m: float | None) -> World:
-    """A ROS map_server YAML (image, resolution, origin, occupied_thresh, free_thresh)."""
+    """A ROS map_server YAML (image, resolution, origin, occupied_thresh, free_thresh); every
+    error names this file and the key."""
     image = data["image"]
-    if not isinstance(image, str) or not image:
-        raise WorldError(f"{path}: 'image' must be a file name")
+    if not isinstance(image, str) or not image or len(image) > MAX_PATH_CHARS or "\0" in image:
+        raise WorldError(f"{path}: 'image' must be a file name of at most {MAX_PATH_CHARS} "
+                         f"characters, got {describe(image)}")
     img_path = Path(image) if Path(image).is_absolute() else path.parent / image
     kwargs: dict[str, float] = {}
+    res = resolution_m if resolution_m is not None else _number(data, "resolution", 0.1, path)
+    origin = data.get("origin", [0.0, 0.0, 0.0])
+    if not isinstance(origin, list | tuple) or len(origin) not in (2, 3):
+        raise WorldError(f"{path}: 'origin' must be [x, y, theta], got {describe(origin)}")
+    kwargs["origin_x_m"] = _number({"origin[0]": origin[0]}, "origin[0]", 0.0, path)
+    kwargs["origin_y_m"] = _number({"origin[1]": origin[1]}, "origin[1]", 0.0, path)
+    for key in ("occupied_thresh", "free_thresh"):
+        if key in data:
+            kwargs[key] = _number(data, key, 0.0, path)
     try:
-        res = resolution_m if resolution_m is not None else float(data.get("resolution", 0.1))
-        origin = data.get("origin", [0.0, 0.0, 0.0])
-        kwargs["origin_x_m"], kwargs["origin_y_m"] = float(origin[0]), float(origin[1])
-        for key in ("occupied_thresh", "free_thresh"):
-            if key in data:
-                kwargs[key] = float(data[key])
-    except (TypeError, ValueError, IndexError, KeyError) as exc:
-        raise WorldError(f"{path}: bad resolution/origin/thresholds: {exc}") from exc
-    cfg = importers.ImageImportConfig(resolution_m=res, **kwargs)
+        cfg = importers.ImageImportConfig(resolution_m=res, **kwargs)
+    except WorldError as exc:
+        raise WorldError(f"{path}: {exc}") from None
+    try:
+        exists = img_path.exists()
+    except OSError as exc:
+        raise WorldError(f"{path}: 'image': cannot read: {exc.strerror or exc}") from None
+    if not exists:
+        raise WorldError(f"{path}: 'image' {describe(image)}: no such file "
+                         f"{describe(str(img_path))}")
     world = importers.import_image(img_path, cfg)
-    name = str(data.get("name", path.stem))
-    return World(world.segments, name=name, start_pose=world.start_pose)
+    name = data.get("name", path.stem)
+    return World(world.segments, name=str(name)[:MAX_NAME_CHARS] if isinstance(name, str)
+                 else path.stem, start_pose=world.start_pose)
+
+
+def _number(data: dict[str, Any], key: str, default: float, path: Path) -> float:
+    """data[key] (or `default`) as a finite number; WorldError naming the file and key."""
+    value = data.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise WorldError(f"{path}: {key!r} must be a number, got {describe(value)}")
+    try:
+        f = float(value)
+    except OverflowError:
+        f = math.inf
+    if not math.isfinite(f):
+        raise WorldError(f"{path}: {key!r} must be a finite number, got {describe(value)}")
+    return f

@@ -39,6 +39,7 @@ from geometry_msgs.msg import TwistStamped
 from island_msgs_py.conversions import (
     NS_PER_S,
     ConversionError,
+    check_stamp,
     fill_odometry,
     twist_stamped_to_command,
 )
@@ -168,6 +169,7 @@ class OdometryNode(Node):
     def _on_cmd(self, msg: TwistStamped) -> None:
         try:
             v, w, stamp_ns = twist_stamped_to_command(msg)
+            check_stamp(stamp_ns, self.sim_time_ns, "/cmd_vel")
         except ConversionError as exc:
             self._warn("/cmd_vel", exc)
             return

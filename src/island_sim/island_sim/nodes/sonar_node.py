@@ -19,9 +19,20 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from island_msgs_py.conversions import ConversionError, arrays_to_scan, odometry_to_pose
+from island_msgs_py.conversions import (
+    ConversionError,
+    arrays_to_scan,
+    check_stamp,
+    odometry_to_pose,
+)
 from island_msgs_py.qos import STREAM_QOS
-from island_msgs_py.ros_params import BadMessageLog, declare_config, log_ready, run_node
+from island_msgs_py.ros_params import (
+    BadMessageLog,
+    clock_ns,
+    declare_config,
+    log_ready,
+    run_node,
+)
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan, Range
@@ -94,6 +105,7 @@ class SonarNode(Node):
     def _on_truth(self, msg: Odometry) -> None:
         try:
             pose, _, t_ns = odometry_to_pose(msg)
+            check_stamp(t_ns, clock_ns(self), "/ground_truth")
         except ConversionError as exc:
             self._warn("/ground_truth", exc)
             return

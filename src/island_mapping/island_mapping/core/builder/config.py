@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from island_msgs_py.errors import InputError
 from island_msgs_py.types import ModelType
 
 from island_mapping.core.fisher import FisherConfig
@@ -19,7 +20,7 @@ from island_mapping.core.localize import LocalizeConfig, Solver
 from island_mapping.core.measure import MeasureConfig
 
 
-class BuilderError(ValueError):
+class BuilderError(InputError):
     """Bad input to the island builder (the message names the argument and the problem)."""
 
 

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from island_msgs_py.errors import InputError
 
-class GraphError(ValueError):
+
+class GraphError(InputError):
     """A request on the map was rejected (the message names the island/edge and the problem)."""
 
 

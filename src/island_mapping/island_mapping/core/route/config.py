@@ -6,10 +6,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from island_msgs_py.errors import InputError
+
 from island_mapping.core.localize import LocalizeConfig, point_to_line_config
 
 
-class NavigateError(ValueError):
+class NavigateError(InputError):
     """Bad input to route following (the message names what was wrong)."""
 
 
