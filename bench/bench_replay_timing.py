@@ -99,7 +99,7 @@ def measure(bag: Path, rate: float) -> None:
     end = time.monotonic() + 1.0
     while len(arrivals) < player.published and time.monotonic() < end:
         ex.spin_once(timeout_sec=0.01)
-    wall0 = player._wall0 if player._wall0 is not None else start
+    wall0 = player.wall_start_s if player.wall_start_s is not None else start
     dev = np.array([(t - wall0) - (s - reader.start_ns) / 1e9 / rate for t, s in arrivals])
     late = np.array(player.lateness_s)
     print(f"bag {bag}: {reader.message_count} messages, {reader.duration_ns / 1e9:.1f} s, "

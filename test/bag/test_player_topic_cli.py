@@ -105,10 +105,13 @@ def test_timed_playback_keeps_recorded_spacing(player_setup: Any,
     scans, _ = _listen(listen)
     player = BagPlayer(play_node, open_bag(bag), rate=1.0, topics=["/sonar/scan"])
     assert spin(ex, lambda: player.subscriber_counts()["/sonar/scan"] > 0, 10)
+    assert player.wall_start_s is None  # nothing played yet
     start = time.monotonic()
     player.play_all(ex)
+    assert player.wall_start_s is not None and player.wall_start_s >= start
     assert spin(ex, lambda: len(scans) == N_SCANS, 10.0)
-    arrivals = np.array([t for t, _ in scans]) - start
+    # The bag's first message is due at wall_start_s, each later one its recorded offset after.
+    arrivals = np.array([t for t, _ in scans]) - player.wall_start_s
     recorded = np.arange(N_SCANS) * PERIOD_NS / 1e9
     # Never early (the wall clock cannot run ahead of the bag), and in order.
     assert np.all(arrivals >= recorded - 1e-3)

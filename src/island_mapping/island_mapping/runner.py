@@ -174,7 +174,7 @@ def _seed(seed: int, offset: int) -> int:
     return (seed + offset) % (MAX_SEED + 1)
 
 
-def _make_node(ctx: Context, cls: type[_N], name: str, base: dict[str, Any],
+def _make_node(ctx: Context, cls: Callable[..., _N], name: str, base: dict[str, Any],
                params: dict[str, dict[str, Any]], made: list[Node]) -> _N:
     """The node `name` with the run's parameters `base` and the user's `params[name]` over
     them, appended to `made` (destroyed on the way out); a RunError naming a rejected value or

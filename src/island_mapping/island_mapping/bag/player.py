@@ -106,6 +106,13 @@ class BagPlayer:
     def next_time_ns(self) -> int | None:
         return None if self._pending is None else self._pending.log_time_ns
 
+    @property
+    def wall_start_s(self) -> float | None:
+        """`time.monotonic()` [s] at which timed playback of the current pass began: the bag's
+        first log time is due then (a later one `(t - start) / rate` after); None before the
+        first `tick` (and after `step_next` began a new pass of a looping player)."""
+        return self._wall0
+
     def _publish_clock(self, t_ns: int) -> None:
         msg = self._clock_cls()
         msg.clock.sec, msg.clock.nanosec = divmod(t_ns, 1_000_000_000)

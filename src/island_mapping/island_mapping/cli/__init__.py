@@ -103,7 +103,7 @@ def build_parser() -> argparse.ArgumentParser:
             continue  # subcommand not shipped in this build
         p = sub.add_parser(name, help=help_text, description=help_text)
         mod.add_arguments(p)
-        p.set_defaults(_run=mod.run, _name=name)
+        p.set_defaults(run_command=mod.run)  # the subcommand's name is in `command`
     return parser
 
 
@@ -114,9 +114,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # -h, or a bad option (already printed on one line)
         return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
-    name = args._name
+    name = args.command
     try:
-        return int(args._run(args))
+        return int(args.run_command(args))
     except InputError as exc:  # CliError and every package's bad-input error
         print(f"islands {name}: error: {one_line(str(exc))}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -130,7 +130,7 @@ def _connected_pairs(graph: TopoGraph, pairs: list[Pair]) -> list[Pair]:
     """Pairs whose islands the map joins (edges usable both ways), as routes are planned."""
     import networkx as nx
 
-    g = nx.Graph()
+    g: nx.Graph[int] = nx.Graph()
     g.add_nodes_from(graph.island_ids())
     g.add_edges_from((e.source, e.target) for e in graph.iter_edges())
     return [p for p in pairs if nx.has_path(g, p[0], p[1])]

@@ -44,8 +44,9 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"{args.data}: no readings")
     cfg = rd.SonarRingConfig()
     scores = rd.score_ring_readings(readings, cfg)
+    ring = rd.ring_metrics(readings, scores)
     metrics = {
-        **rd.ring_metrics(readings, scores),
+        **ring,
         "geometry": {
             "sensors": rd.RING_SENSORS,
             "sensor_1_deg": 0.0,
@@ -57,5 +58,5 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
     plot_ring_scores(readings, scores, out / "sonar_ring.png")
-    print(json.dumps({k: v["median_r"] for k, v in metrics["per_label"].items()}))
+    print(json.dumps({k: v["median_r"] for k, v in ring["per_label"].items()}))
     return 0

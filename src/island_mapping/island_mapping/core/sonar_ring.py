@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -127,11 +128,32 @@ def score_ring_readings(
 RING_LOW_R = 0.3
 
 
-def ring_metrics(readings: SonarReadings, scores: RingScores) -> dict[str, object]:
+class LabelMetrics(TypedDict):
+    """R and Fisher score of the readings of one motion label (`ring_metrics`)."""
+
+    count: int
+    mean_r: float
+    median_r: float
+    mean_fisher: float
+    median_fisher: float
+    mean_segments: float
+    frac_r_below_low: float  # fraction of the readings with R < RING_LOW_R [-]
+
+
+class RingMetrics(TypedDict):
+    """What `ring_metrics` returns (JSON-ready)."""
+
+    readings: int
+    mean_r: float | None  # None without readings
+    low_r_threshold: float
+    per_label: dict[str, LabelMetrics]
+
+
+def ring_metrics(readings: SonarReadings, scores: RingScores) -> RingMetrics:
     """Per-label count, mean and median of R and of the Fisher score, the fraction of readings
     with R < RING_LOW_R (JSON-ready)."""
     labels = np.asarray(readings.labels)
-    per: dict[str, object] = {}
+    per: dict[str, LabelMetrics] = {}
     for lab in sorted(set(readings.labels)):
         sel = labels == lab
         per[lab] = {

@@ -6,7 +6,9 @@
   ImageImportConfig, grid_to_segments, rectangles_to_segments;
 - `sonar`: SonarConfig, SonarModel; `robot`: SimRobot, RobotConfig, OdometryConfig and the sim
   clock and lockstep (SimClock, SimLoopConfig, CommandGate, RealTimePacer);
-- `hall_follower`: HallFollower, HallFollowerConfig.
-Imports point one way: world_loader -> importers, worlds_builtin -> world. Import from the
-modules: this package module re-exports nothing.
+- `hall_follower`: HallFollower (and, re-exported, its config); `hall_follower_config`:
+  HallFollowerConfig, TurnPolicy, TurnChoice; `strategy_record`: StrategyRecorder (Go/Rot).
+Imports point one way: world_loader -> importers, worlds_builtin -> world, hall_follower ->
+hall_follower_config and strategy_record. Import from the modules: this package module
+re-exports nothing.
 """

@@ -12,35 +12,47 @@ A pure state machine: `HallFollower.update(ranges_m, angles_rad, odom_pose, t_s)
   cancelling if the side closes again first (a door, narrower than a hallway), rotates in place
   by odometry (TURN) and drives into the new hallway (ENTER) before following again.
 - It stops short of walls ahead: the speed falls to zero at `stop_distance_m`.
-- What it executed is kept as the paper's control-strategy primitives (Table 1): Go [cm] of
-  odometric travel, Rot [deg CCW, 0-360) of odometric rotation; `reset_strategy()` restarts the
-  record at the current pose; `set_enabled(False)` outputs zero twist (motion while paused is not
-  recorded) and re-enabling resumes from FOLLOW at the current pose.
+- What it executed is kept as the paper's control-strategy primitives (Table 1, see
+  `strategy_record`): Go [cm] of odometric travel, Rot [deg CCW, 0-360) of odometric rotation;
+  `reset_strategy()` restarts the record at the current pose; `set_enabled(False)` outputs zero
+  twist (motion while paused is not recorded) and re-enabling resumes from FOLLOW at the
+  current pose.
+
+The configuration (`HallFollowerConfig`, `TurnPolicy`, `TurnChoice`, `parse_script`,
+`HallFollowerError`) lives in `hall_follower_config` and is importable from here too.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
-from island_msgs_py.errors import InputError
-from island_msgs_py.hall_perception import (
-    HallPerceptionConfig,
-    Perception,
-    PerceptionError,
-    perceive,
+from island_msgs_py.hall_perception import Perception, PerceptionError, perceive
+from island_msgs_py.types import ControlStrategy, Pose2D, wrap_angle
+
+from island_sim.core.hall_follower_config import (
+    HallFollowerConfig,
+    HallFollowerError,
+    TurnChoice,
+    TurnPolicy,
+    parse_script,
 )
-from island_msgs_py.types import (
-    ControlStrategy,
-    Pose2D,
-    PrimitiveKind,
-    StrategyPrimitive,
-    wrap_angle,
-)
+from island_sim.core.strategy_record import StrategyRecorder
+
+__all__ = [
+    "Decision",
+    "FollowerState",
+    "HallFollower",
+    "HallFollowerConfig",
+    "HallFollowerError",
+    "TurnChoice",
+    "TurnPolicy",
+    "parse_script",
+]
 
 # Weight of a new wall-based hallway direction in the smoothed direction estimate [-].
 _AXIS_SMOOTHING = 0.3
@@ -52,28 +64,8 @@ _STALL_MIN_SPEED_MPS = 0.1
 _STALL_PROGRESS_FRACTION = 0.2
 # Largest disagreement [rad] between the wall-based and the held hallway direction still trusted.
 _AXIS_TRUST_RAD = math.radians(25.0)
-# Parameter range of the config's distances, speeds, gains and times (all must be >= 0).
-_NON_NEGATIVE = (0.0, math.inf)
-
-
-class HallFollowerError(InputError):
-    """Bad configuration or bad `update` input; the message names the field."""
-
-
-class TurnPolicy(StrEnum):
-    """How the follower chooses at intersections and dead ends."""
-
-    LEFT_HAND = "left_hand"  # prefer left, then straight, then right, then back
-    RIGHT_HAND = "right_hand"  # prefer right, then straight, then left, then back
-    SCRIPTED = "scripted"  # the next choice of `script`; left-hand order when unavailable/used up
-    RANDOM = "random"  # uniformly among the available choices (seeded Generator)
-
-
-class TurnChoice(StrEnum):
-    LEFT = "left"
-    STRAIGHT = "straight"
-    RIGHT = "right"
-    BACK = "back"
+# The twist of a step that only changes state (stop, settle, decide) [m/s, rad/s].
+_STOP = (0.0, 0.0)
 
 
 class FollowerState(StrEnum):
@@ -92,205 +84,6 @@ _TURN_ANGLE_RAD = {
 }
 _LEFT_ORDER = (TurnChoice.LEFT, TurnChoice.STRAIGHT, TurnChoice.RIGHT, TurnChoice.BACK)
 _RIGHT_ORDER = (TurnChoice.RIGHT, TurnChoice.STRAIGHT, TurnChoice.LEFT, TurnChoice.BACK)
-
-
-def parse_script(text: str) -> tuple[TurnChoice, ...]:
-    """`"left, straight, right, back"` (or l/s/r/b) -> turn choices; empty text -> ()."""
-    short = {"l": "left", "s": "straight", "r": "right", "b": "back"}
-    out = []
-    for part in text.replace(";", ",").split(","):
-        p = part.strip().lower()
-        if not p:
-            continue
-        try:
-            out.append(TurnChoice(short.get(p, p)))
-        except ValueError:
-            raise HallFollowerError(
-                f"HallFollowerConfig.script: unknown turn {part.strip()!r} "
-                "(use left, straight, right, back)"
-            ) from None
-    return tuple(out)
-
-
-@dataclass(frozen=True)
-class HallFollowerConfig:
-    """Parameters of the hall follower (distances from the robot centre)."""
-
-    cruise_speed_mps: float = field(
-        default=0.5,
-        metadata={"help": "speed along halls [m/s]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    max_turn_rate_radps: float = field(
-        default=1.0,
-        metadata={"help": "largest commanded turn rate [rad/s]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    robot_radius_m: float = field(
-        default=0.25,
-        metadata={"help": "radius of the robot's body, for clearance checks [m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    stop_distance_m: float = field(
-        default=0.75,
-        metadata={"help": "an obstacle ahead this close (from the robot centre) stops the "
-                  "robot and forces a decision [m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    slow_distance_m: float = field(
-        default=2.0,
-        metadata={"help": "the robot slows down linearly below this front range [m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    path_margin_m: float = field(
-        default=0.2,
-        metadata={"help": "echoes ahead within robot_radius_m + this of the robot's path "
-                  "count as obstacles in the way [m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    side_half_angle_deg: float = field(
-        default=35.0,
-        metadata={"help": "echoes within this of a side's perpendicular bearing are fitted as "
-                  "that side's wall [deg]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    fit_tolerance_m: float = field(
-        default=0.08,
-        metadata={"help": "largest residual of a side wall fit still taken as one straight "
-                  "wall; otherwise only the perpendicular distance is used [m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    open_side_m: float = field(
-        default=2.5,
-        metadata={"help": "a side whose perpendicular range exceeds this is open [m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    rearm_distance_m: float = field(
-        default=1.0,
-        metadata={"help": "travel with a side closed before an opening on it counts again [m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    confirm_distance_m: float = field(
-        default=0.1,
-        metadata={"help": "travel with a side open before the opening counts (debounce) [m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    default_hall_width_m: float = field(
-        default=2.0,
-        metadata={"help": "hallway width assumed before one has been measured [m]",
-                  "range": _NON_NEGATIVE},
-    )
-    side_lag_m: float = field(
-        default=0.2,
-        metadata={"help": "travel past a corner before the side transducer's cone clears it; "
-                  "subtracted from the advance to a side hallway's middle [m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    min_advance_m: float = field(
-        default=0.4,
-        metadata={"help": "shortest drive from an opening to the turn [m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    enter_distance_m: float = field(
-        default=1.2,
-        metadata={"help": "drive after a turn before following again [m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    straight_free_m: float = field(
-        default=3.0,
-        metadata={"help": "at an opening, straight is a choice when the way ahead is free this "
-                  "far [m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    k_lateral: float = field(
-        default=1.2,
-        metadata={"help": "approach angle per metre off the hallway middle [rad/m]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    max_approach_deg: float = field(
-        default=20.0,
-        metadata={"help": "largest angle to the hallway when re-centring [deg]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    k_heading: float = field(
-        default=2.0,
-        metadata={"help": "turn rate per radian of heading error [1/s]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    turn_tolerance_deg: float = field(
-        default=1.5,
-        metadata={"help": "a rotation in place ends within this of its target [deg]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    stall_time_s: float = field(
-        default=1.0,
-        metadata={"help": "driving forward while odometry shows (almost) no progress for this "
-                  "long counts as blocked (a wall the sonar cannot see) [s]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    min_turn_rate_radps: float = field(
-        default=0.15,
-        metadata={"help": "smallest turn rate while rotating in place [rad/s]",
-                  "live": True, "range": _NON_NEGATIVE},
-    )
-    policy: TurnPolicy = field(
-        default=TurnPolicy.LEFT_HAND,
-        metadata={"help": "turn policy: left_hand, right_hand, scripted, random",
-                  "live": True},
-    )
-    script: str = field(
-        default="",
-        metadata={"help": "scripted policy: comma-separated turns (left, straight, right, back) "
-                  "used one per decision",
-                  "live": True},
-    )
-
-    def __post_init__(self) -> None:
-        for f_name in (
-            "cruise_speed_mps", "max_turn_rate_radps", "robot_radius_m", "stop_distance_m",
-            "slow_distance_m", "path_margin_m", "side_half_angle_deg", "fit_tolerance_m",
-            "open_side_m",
-            "rearm_distance_m", "confirm_distance_m", "default_hall_width_m", "side_lag_m",
-            "min_advance_m", "enter_distance_m", "straight_free_m", "k_lateral",
-            "max_approach_deg", "k_heading", "turn_tolerance_deg", "min_turn_rate_radps",
-            "stall_time_s",
-        ):
-            v = getattr(self, f_name)
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                raise HallFollowerError(f"HallFollowerConfig.{f_name}: expected a finite number, "
-                                        f"got {v!r}")
-            if v < 0:
-                raise HallFollowerError(f"HallFollowerConfig.{f_name}: must be >= 0, got {v}")
-        if self.stop_distance_m <= self.robot_radius_m:
-            raise HallFollowerError(
-                f"HallFollowerConfig.stop_distance_m ({self.stop_distance_m}) must exceed "
-                f"robot_radius_m ({self.robot_radius_m})"
-            )
-        if self.slow_distance_m <= self.stop_distance_m:
-            raise HallFollowerError(
-                f"HallFollowerConfig.slow_distance_m ({self.slow_distance_m}) must exceed "
-                f"stop_distance_m ({self.stop_distance_m})"
-            )
-        if not isinstance(self.policy, TurnPolicy):
-            try:
-                object.__setattr__(self, "policy", TurnPolicy(self.policy))
-            except ValueError:
-                raise HallFollowerError(
-                    f"HallFollowerConfig.policy: unknown policy {self.policy!r} "
-                    f"(use {', '.join(p.value for p in TurnPolicy)})"
-                ) from None
-        parse_script(self.script)
-
-    @property
-    def perception(self) -> HallPerceptionConfig:
-        """The hallway perception these fields configure (shared with route following)."""
-        return HallPerceptionConfig(self.robot_radius_m, self.path_margin_m,
-                                    self.side_half_angle_deg, self.fit_tolerance_m,
-                                    self.open_side_m)
-
-    @property
-    def script_choices(self) -> tuple[TurnChoice, ...]:
-        return parse_script(self.script)
 
 
 @dataclass(frozen=True)
@@ -337,11 +130,7 @@ class HallFollower:
         self._turn_target = 0.0
         self._settling = False
         self._last_step_m = 0.0
-        # strategy record
-        self._steps: list[StrategyPrimitive] = []
-        self._go_m = 0.0
-        self._rot_rad = 0.0
-        self._rot_start: float | None = None
+        self._record = StrategyRecorder()
 
     # --- public state --------------------------------------------------------------------------
     @property
@@ -369,7 +158,7 @@ class HallFollower:
                 self._closed_since[side] = math.nan
                 self._open_since[side] = math.nan
         if not enabled and self._enabled:
-            self._close_rotation()
+            self._record.close_rotation(self._heading)
         self._enabled = bool(enabled)
 
     def reconfigure(self, config: HallFollowerConfig) -> None:
@@ -382,51 +171,19 @@ class HallFollower:
             self._script = list(config.script_choices)
         self.config = config
 
+
     def reset_strategy(self) -> None:
         """Forget the executed strategy; the record restarts at the current pose."""
-        self._steps = []
-        self._go_m = 0.0
-        self._rot_rad = 0.0
-        if self._rot_start is not None and self._last_pose is not None:
-            self._rot_start = self._last_pose.theta
+        self._record.reset(self._heading)
 
     def strategy(self) -> ControlStrategy:
         """What was executed since the start or the last reset, e.g. `Go 125, Rot 270, Go 652`."""
-        steps = list(self._steps)
-        rot = self._rot_rad
-        if self._rot_start is not None and self._last_pose is not None:
-            rot += wrap_angle(self._last_pose.theta - self._rot_start)
-        self._append(steps, PrimitiveKind.ROT, rot)
-        self._append(steps, PrimitiveKind.GO, self._go_m)
-        return ControlStrategy(tuple(steps))
+        return self._record.strategy(self._heading)
 
-    # --- strategy bookkeeping ------------------------------------------------------------------
-    @staticmethod
-    def _append(steps: list[StrategyPrimitive], kind: PrimitiveKind, amount: float) -> None:
-        """Append a Go [m] or Rot [rad] amount in Table 1 units, merging with a step of its kind."""
-        if kind is PrimitiveKind.GO:
-            prev = steps[-1].value if steps and steps[-1].kind is kind else 0
-            value = prev + round(amount * 100.0)
-            if value <= 0:
-                return
-        else:
-            prev_rad = math.radians(steps[-1].value) if steps and steps[-1].kind is kind else 0.0
-            value = round(math.degrees(wrap_angle(prev_rad + amount))) % 360
-        if steps and steps[-1].kind is kind:
-            steps.pop()
-        if value != 0:
-            steps.append(StrategyPrimitive(kind, value))
-
-    def _close_go(self) -> None:
-        self._append(self._steps, PrimitiveKind.GO, self._go_m)
-        self._go_m = 0.0
-
-    def _close_rotation(self) -> None:
-        if self._rot_start is not None and self._last_pose is not None:
-            self._rot_rad += wrap_angle(self._last_pose.theta - self._rot_start)
-        self._rot_start = None
-        self._append(self._steps, PrimitiveKind.ROT, self._rot_rad)
-        self._rot_rad = 0.0
+    @property
+    def _heading(self) -> float | None:
+        """The last odometric heading [rad]; None before the first pose (since resuming)."""
+        return self._last_pose.theta if self._last_pose is not None else None
 
     # --- perception ----------------------------------------------------------------------------
     def perceive(self, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike) -> Perception:
@@ -473,80 +230,116 @@ class HallFollower:
         return t_s - self._stall_since >= self.config.stall_time_s
 
     def _control(self, p: Perception, odom_pose: Pose2D, t_s: float) -> tuple[float, float]:
+        """One step of the state machine. TURN rotates (and ends in ENTER); ADVANCE turns at the
+        side hallway's middle or cancels (back to FOLLOW, which may decide at once); ENTER ends
+        in FOLLOW; FOLLOW may decide. A step that started a turn stops; the others drive."""
         if not self._started:
             self._started = True
             self._axis = odom_pose.theta
-        c = self.config
+        self._track_hallway(p, odom_pose)
+        self._track_sides(p)
+        if self._state is FollowerState.TURN:
+            return self._step_turn(odom_pose)
+        if self._state is FollowerState.ADVANCE and self._step_advance(p, odom_pose):
+            return _STOP
+        if self._state is FollowerState.ENTER:
+            self._step_enter(p)
+        if self._state is FollowerState.FOLLOW and self._step_follow(p, odom_pose, t_s):
+            return _STOP
+        return self._drive(p, odom_pose)
 
-        # keep the hallway direction (odometry frame) and width up to date
+    def _track_hallway(self, p: Perception, odom_pose: Pose2D) -> None:
+        """Between two closed sides while following: update the hallway's direction (odometry
+        frame, smoothed, only from walls that agree with it) and its width."""
         in_hall = (
             self._state is FollowerState.FOLLOW and not p.left_open and not p.right_open
         )
-        if p.wall_angle_rad is not None and in_hall:
+        if not in_hall:
+            return
+        if p.wall_angle_rad is not None:
             axis = wrap_angle(odom_pose.theta + p.wall_angle_rad)
             if abs(wrap_angle(axis - self._axis)) < _AXIS_TRUST_RAD:
                 step = _AXIS_SMOOTHING * wrap_angle(axis - self._axis)
                 self._axis = wrap_angle(self._axis + step)
-        if in_hall and math.isfinite(p.left_dist_m) and math.isfinite(p.right_dist_m):
+        if math.isfinite(p.left_dist_m) and math.isfinite(p.right_dist_m):
             self._hall_width_m = p.left_dist_m + p.right_dist_m
-        self._track_sides(p)
 
-        if self._state is FollowerState.TURN:
-            if self._settling:
-                if self._last_step_m > _SETTLED_STEP_M:
-                    return 0.0, 0.0  # still rolling to a stop: that travel belongs to the Go
-                self._settling = False
-                self._close_go()
-                self._rot_start = odom_pose.theta
-            err = wrap_angle(self._turn_target - odom_pose.theta)
-            if abs(err) <= math.radians(c.turn_tolerance_deg):
-                self._close_rotation()
-                self._state = FollowerState.ENTER
-                self._axis = self._turn_target
-                self._enter_until_m = self._travel_m + c.enter_distance_m
-                return 0.0, 0.0
-            w = c.k_heading * err
-            w = math.copysign(min(max(abs(w), c.min_turn_rate_radps), c.max_turn_rate_radps), err)
-            return 0.0, w
+    def _step_turn(self, odom_pose: Pose2D) -> tuple[float, float]:
+        """TURN: wait until the robot stands still (that roll is part of the Go), then rotate
+        in place to the target heading; there, ENTER the new hallway along it."""
+        c = self.config
+        if self._settling:
+            if self._last_step_m > _SETTLED_STEP_M:
+                return _STOP  # still rolling to a stop: that travel belongs to the Go
+            self._settling = False
+            self._record.close_go()
+            self._record.start_rotation(odom_pose.theta)
+        err = wrap_angle(self._turn_target - odom_pose.theta)
+        if abs(err) <= math.radians(c.turn_tolerance_deg):
+            self._record.close_rotation(self._heading)
+            self._state = FollowerState.ENTER
+            self._axis = self._turn_target
+            self._enter_until_m = self._travel_m + c.enter_distance_m
+            return _STOP
+        w = c.k_heading * err
+        w = math.copysign(min(max(abs(w), c.min_turn_rate_radps), c.max_turn_rate_radps), err)
+        return 0.0, w
 
-        if self._state is FollowerState.ADVANCE:
-            side = self._pending
-            assert side is not None
-            still_open = p.left_open if side is TurnChoice.LEFT else p.right_open
-            if not still_open:
-                # the opening closed before its middle: a door, not a hallway
-                self.cancelled_turns += 1
-                if self._script_active and self.decisions:
-                    self._script.insert(0, self.decisions[-1].choice)
-                self._state = FollowerState.FOLLOW
-                self._pending = None
-            elif self._travel_m >= self._advance_until_m or p.front_m <= max(
-                c.stop_distance_m, 0.5 * self._hall_width_m
-            ):
-                self._start_turn(side, odom_pose)
-                return 0.0, 0.0
+    def _step_advance(self, p: Perception, odom_pose: Pose2D) -> bool:
+        """ADVANCE: cancel if the chosen side closed again; start the turn at the side hallway's
+        middle (or before a wall ahead). True when the turn started."""
+        c = self.config
+        side = self._pending
+        assert side is not None
+        still_open = p.left_open if side is TurnChoice.LEFT else p.right_open
+        if not still_open:
+            self._cancel_advance()
+            return False
+        at_turn = self._travel_m >= self._advance_until_m or p.front_m <= max(
+            c.stop_distance_m, 0.5 * self._hall_width_m
+        )
+        if at_turn:
+            self._start_turn(side, odom_pose)
+        return at_turn
 
-        if self._state is FollowerState.ENTER and (
-            self._travel_m >= self._enter_until_m or p.front_m <= c.stop_distance_m
-        ):
+    def _cancel_advance(self) -> None:
+        """The opening closed before its middle: a door, not a hallway. Follow on (a scripted
+        turn is kept for the next opening)."""
+        self.cancelled_turns += 1
+        if self._script_active and self.decisions:
+            self._script.insert(0, self.decisions[-1].choice)
+        self._state = FollowerState.FOLLOW
+        self._pending = None
+
+    def _step_enter(self, p: Perception) -> None:
+        """ENTER: follow again after `enter_distance_m` into the new hallway (or at a wall)."""
+        if self._travel_m >= self._enter_until_m or p.front_m <= self.config.stop_distance_m:
             self._state = FollowerState.FOLLOW
 
-        if self._state is FollowerState.FOLLOW:
-            choice = self._maybe_decide(p, odom_pose, t_s)
-            if choice is not None:
-                if choice in (TurnChoice.LEFT, TurnChoice.RIGHT) and p.front_m > c.stop_distance_m:
-                    self._pending = choice
-                    self._state = FollowerState.ADVANCE
-                    opened_at = self._open_since[choice]
-                    if math.isnan(opened_at):
-                        opened_at = self._travel_m
-                    advance = max(c.min_advance_m, 0.5 * self._hall_width_m - c.side_lag_m)
-                    self._advance_until_m = opened_at + advance
-                elif choice is not TurnChoice.STRAIGHT:
-                    self._start_turn(choice, odom_pose)
-                    return 0.0, 0.0
+    def _step_follow(self, p: Perception, odom_pose: Pose2D, t_s: float) -> bool:
+        """FOLLOW: at an opening or a wall ahead, decide. A side turn with room ahead first
+        ADVANCEs to the side hallway's middle; back (or a side turn at a wall) turns at once.
+        True when the turn started."""
+        choice = self._maybe_decide(p, odom_pose, t_s)
+        if choice is None or choice is TurnChoice.STRAIGHT:
+            return False
+        side_turn = choice in (TurnChoice.LEFT, TurnChoice.RIGHT)
+        if side_turn and p.front_m > self.config.stop_distance_m:
+            self._start_advance(choice)
+            return False
+        self._start_turn(choice, odom_pose)
+        return True
 
-        return self._drive(p, odom_pose)
+    def _start_advance(self, side: TurnChoice) -> None:
+        """Drive on to the estimated middle of the side hallway that opened on `side`."""
+        c = self.config
+        self._pending = side
+        self._state = FollowerState.ADVANCE
+        opened_at = self._open_since[side]
+        if math.isnan(opened_at):
+            opened_at = self._travel_m
+        advance = max(c.min_advance_m, 0.5 * self._hall_width_m - c.side_lag_m)
+        self._advance_until_m = opened_at + advance
 
     @property
     def _script_active(self) -> bool:
@@ -559,7 +352,7 @@ class HallFollower:
             self._last_step_m = d
             self._travel_m += d
             if self._state is not FollowerState.TURN or self._settling:
-                self._go_m += d
+                self._record.add_travel(d)
         self._last_pose = pose
 
     def _track_sides(self, p: Perception) -> None:
