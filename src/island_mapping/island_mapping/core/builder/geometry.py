@@ -1,4 +1,4 @@
-"""Points between frames, scans to points, and whether a straight drive keeps clear of walls."""
+"""Points between frames (island_msgs_py.geometry) and whether a straight drive keeps clear of walls."""
 
 from __future__ import annotations
 
@@ -6,8 +6,7 @@ import math
 
 import numpy as np
 from island_msgs_py.geometry import from_frame, to_frame
-from island_msgs_py.geometry import ranges_to_points as _ranges_to_points
-from island_msgs_py.types import FloatArray, Pose2D
+from island_msgs_py.types import FloatArray
 
 from island_mapping.core.lines import point_segment_distance
 
@@ -27,10 +26,4 @@ def concat(points: list[FloatArray]) -> FloatArray:
     return np.concatenate(points, axis=0) if points else np.zeros((0, 2))
 
 
-def scan_points(r: FloatArray, a: FloatArray, pose: Pose2D) -> FloatArray:
-    """(K, 2) points [m] of the finite ranges `r` at robot-frame angles `a`, in the pose's
-    parent frame (island_msgs_py.geometry.ranges_to_points)."""
-    return _ranges_to_points(r, a, pose)
-
-
-__all__ = ["concat", "drive_clear", "from_frame", "scan_points", "to_frame"]
+__all__ = ["concat", "drive_clear", "from_frame", "to_frame"]

@@ -17,6 +17,7 @@ from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.geometry import ranges_to_points
 from island_msgs_py.types import (
     ControlStrategy,
     Edge,
@@ -54,7 +55,7 @@ from island_mapping.core.builder.follow import (
     follow_step,
     straight_behind_m,
 )
-from island_mapping.core.builder.geometry import concat, scan_points, to_frame
+from island_mapping.core.builder.geometry import concat, to_frame
 from island_mapping.core.builder.hooks import (
     APPROACH_M,
     BuilderHooks,
@@ -144,9 +145,9 @@ class IslandBuilder:
         self._last_scan = (r, a)
         if self._odom is None:
             return
-        pts = scan_points(r, a, self._odom)
+        pts = ranges_to_points(r, a, self._odom)
         near = r <= self.config.revisit.max_range_m  # far sonar echoes are wide cones
-        near_pts = scan_points(r[near], a[near], self._odom)  # for recognising known islands
+        near_pts = ranges_to_points(r[near], a[near], self._odom)  # for recognising known islands
         if self._state is _State.STAR and self._attempt is not None:
             self._attempt.add_scan(pts, near_pts, self._odom, self.config.centre_radius_m)
         look = self._look()
@@ -341,7 +342,7 @@ class IslandBuilder:
         self._attempt = Attempt.begin(
             self._odom, self._truth, self._track.cov, eps, bound, first, self._ahead_free_m(),
             straight_behind_m(self._strategy),
-            to_frame(scan_points(*self._last_scan, self._odom), self._odom))
+            to_frame(ranges_to_points(*self._last_scan, self._odom), self._odom))
         self._track.anchor_star()
         self._state = _State.STAR
         self._emit(EventKind.ATTEMPT_STARTED, anchor_odom=self._odom, bound=bound)
