@@ -10,12 +10,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from island_sim.core.images import read_pgm, read_png
 from island_sim.core.importers import (
     ImageImportConfig,
     grid_to_segments,
     import_image,
-    read_pgm,
-    read_png,
     rectangles_to_segments,
 )
 from island_sim.core.sonar import SonarConfig, SonarModel

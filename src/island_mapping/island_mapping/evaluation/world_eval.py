@@ -34,7 +34,8 @@ from island_msgs_py.errors import InputError
 from island_msgs_py.json_io import GraphFormatError, pose_from_dict
 from island_msgs_py.types import Pose2D
 from island_sim.core.freespace import AllowedFn, FreeSpaceError, known_free_allowed
-from island_sim.core.importers import ImageImportConfig, read_pgm, read_png
+from island_sim.core.images import read_pgm, read_png
+from island_sim.core.importers import ImageImportConfig
 from island_sim.core.places import WorldPlaceKind, WorldPlaces
 from island_sim.core.world import World, read_structured
 

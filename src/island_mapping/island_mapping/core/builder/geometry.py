@@ -1,4 +1,5 @@
-"""Points between frames (island_msgs_py.geometry) and whether a straight drive keeps clear of walls."""
+"""Points between frames (from island_msgs_py.geometry), and whether a straight drive keeps
+clear of walls."""
 
 from __future__ import annotations
 
