@@ -48,9 +48,9 @@ def _run_cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, 
 def test_replay_reproduces_the_recorded_graph(
     recorded_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    from island_mapping.bag.compare import compare_graphs
     from island_mapping.bag.reader import open_bag
     from island_mapping.core.graph import TopoGraph
-    from island_mapping.replay import compare_graphs
 
     recorded = TopoGraph.load_json(recorded_run / "graph.json")
     # The run must have built something worth comparing: two islands and the edge between.
@@ -96,9 +96,9 @@ def test_replay_reproduces_the_recorded_graph(
 def test_truncated_bag_is_refused_or_replayed_up_to_the_damage(
     recorded_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    from island_mapping.bag.compare import compare_graphs
     from island_mapping.bag.reader import open_bag
     from island_mapping.core.graph import TopoGraph
-    from island_mapping.replay import compare_graphs
 
     (mcap,) = sorted((recorded_run / "run_bag").glob("*.mcap"))
     cut = tmp_path / "cut"
@@ -152,8 +152,8 @@ def _graph() -> Any:
 
 
 def test_compare_graphs_finds_each_kind_of_difference() -> None:
+    from island_mapping.bag.compare import compare_graphs
     from island_mapping.core.graph import TopoGraph
-    from island_mapping.replay import compare_graphs
     from island_msgs_py.types import ControlStrategy, LineModel, ModelType
 
     g = _graph()
@@ -187,7 +187,7 @@ def test_compare_graphs_finds_each_kind_of_difference() -> None:
 
 
 def test_compare_events_reports_the_first_difference() -> None:
-    from island_mapping.replay import compare_events
+    from island_mapping.bag.compare import compare_events
 
     a = [{"kind": "attempt_started", "t_s": 0.0}, {"kind": "island_accepted", "t_s": 25.0}]
     assert compare_events(a, list(a))["identical"]

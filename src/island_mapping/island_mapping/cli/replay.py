@@ -99,13 +99,8 @@ def _load_reference(path: Path) -> TopoGraph:
 
 
 def run(args: argparse.Namespace) -> int:
-    from island_mapping.replay import (
-        ReplayConfig,
-        ReplayError,
-        compare_events,
-        compare_graphs,
-        replay_run,
-    )
+    from island_mapping.bag.compare import compare_events, compare_graphs
+    from island_mapping.replay import ReplayConfig, ReplayError, replay_run
 
     bag = Path(args.bag)
     if not bag.exists():

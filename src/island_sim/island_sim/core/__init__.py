@@ -9,7 +9,6 @@
 - `hall_follower`: HallFollower (and, re-exported, its config); `hall_follower_config`:
   HallFollowerConfig, TurnPolicy, TurnChoice; `strategy_record`: StrategyRecorder (Go/Rot).
 Imports point one way: world_loader -> importers -> images, worlds_builtin -> world,
-hall_follower ->
-hall_follower_config and strategy_record. Import from the modules: this package module
-re-exports nothing.
+hall_follower -> hall_follower_config and strategy_record. Import from the modules: this
+package module re-exports nothing.
 """
