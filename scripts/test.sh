@@ -6,6 +6,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 . "$ROOT/scripts/setup.sh"
 cd "$ROOT"
 python -m ruff check src test bench
+python scripts/check_sizes.py  # issue 15: files <= 600 lines in src/, classes <= 400, functions <= 80
 lint-imports  # the architecture contracts of pyproject.toml [tool.importlinter]
 python -m mypy
 python -m pytest "$@"

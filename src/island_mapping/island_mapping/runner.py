@@ -232,24 +232,7 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
                 executor.add_node(n)
         _wait_for_builder(executor, builder)
         executor.add_node(odo)  # the clock starts
-        wall0 = time.monotonic()
-        last_report = -1.0
-        while not odo.finished:
-            if time.monotonic() - wall0 > cfg.wall_timeout_s:
-                raise RunError(
-                    f"run did not reach {cfg.sim_seconds:.0f} s of sim time within "
-                    f"{cfg.wall_timeout_s:.0f} s wall (at {odo.sim_time_ns * 1e-9:.0f} s)"
-                )
-            executor.spin_once(timeout_sec=0.05)
-            t_sim = odo.sim_time_ns * 1e-9
-            if progress is not None and t_sim - last_report >= 1.0:
-                last_report = t_sim
-                progress(min(1.0, t_sim / cfg.sim_seconds))
-        # Let the last messages and the builder's final service calls arrive.
-        settle = time.monotonic() + 0.5
-        while time.monotonic() < settle:
-            executor.spin_once(timeout_sec=0.02)
-        wall = time.monotonic() - wall0
+        wall = _spin_until_finished(executor, odo, cfg, progress)
         if progress is not None:
             progress(1.0)
         return RunRecord(
@@ -273,6 +256,29 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
         for n in nodes:
             n.destroy_node()
         ctx.try_shutdown()
+
+
+def _spin_until_finished(executor: SingleThreadedExecutor, odo: OdometryNode, cfg: RunConfig,
+                         progress: Callable[[float], None] | None) -> float:
+    """Spin until the simulator has run `cfg.sim_seconds`, then let the last messages and the
+    builder's final service calls arrive; returns the wall time since the clock started [s]."""
+    wall0 = time.monotonic()
+    last_report = -1.0
+    while not odo.finished:
+        if time.monotonic() - wall0 > cfg.wall_timeout_s:
+            raise RunError(
+                f"run did not reach {cfg.sim_seconds:.0f} s of sim time within "
+                f"{cfg.wall_timeout_s:.0f} s wall (at {odo.sim_time_ns * 1e-9:.0f} s)"
+            )
+        executor.spin_once(timeout_sec=0.05)
+        t_sim = odo.sim_time_ns * 1e-9
+        if progress is not None and t_sim - last_report >= 1.0:
+            last_report = t_sim
+            progress(min(1.0, t_sim / cfg.sim_seconds))
+    settle = time.monotonic() + 0.5
+    while time.monotonic() < settle:
+        executor.spin_once(timeout_sec=0.02)
+    return time.monotonic() - wall0
 
 
 def _wait_for_builder(executor: SingleThreadedExecutor, builder: IslandBuilderNode) -> None:

@@ -6,7 +6,9 @@ ROS-free (numpy only):
 - `geometry`: pose algebra on (N, 3) arrays, points to/from frames, ranges_to_points,
   point-segment distances, clearance_m;
 - `raycast`: raycast, SegmentIndex, RayHits, RayCaster (the project's one ray caster);
-- `stamps`: ScanOdomPairer, Paired (a scan with the odometry of its stamp).
+- `stamps`: ScanOdomPairer, the project's one scan/odometry stamp pairer: Paired (a scan with
+  the odometry of its stamp), and with `every_odometry` every OdometrySample in stamp order,
+  StreamSample (extra pose streams such as ground truth), paired_only, StampError.
 With rclpy and standard messages:
 - `conversions`: shared types and sensor/drive messages (Time, LaserScan, Odometry, Twist) <->
   core values, ConversionError; `qos`: STREAM_QOS, LATCHED; `ros_params`: declare_config,

@@ -192,60 +192,76 @@ class SegmentIndex:
             counts = np.array([c.size for c in lists], dtype=np.int64)
             ray_counts = counts[inv]
             final = (r >= exit_m[pending]) | (r >= max_range_m)
-            t = np.empty(pending.size)
-            jg = np.empty(pending.size, dtype=np.int64)
-            # Buckets of rays with similar candidate counts (padding wastes at most 2x); rays
-            # with candidates for most of the world test all segments by broadcasting instead.
-            if pending.size <= _SMALL_CALL_RAYS:  # one bucket: less bookkeeping per call
-                dense = int(ray_counts.max()) * _DENSE_FRACTION_INV >= n
-                bucket = np.full(pending.size, -1 if dense else 0, dtype=np.int64)
-            else:
-                bucket = np.where(
-                    ray_counts * _DENSE_FRACTION_INV >= n,
-                    -1,
-                    np.ceil(np.log2(np.maximum(ray_counts, 1))).astype(np.int64),
-                )
-            buckets = np.unique(bucket).tolist() if bucket.size > _SMALL_CALL_RAYS else [bucket[0]]
-            for b in buckets:
-                sel = np.flatnonzero(bucket == b)
-                if b < 0:
-                    for s in range(0, sel.size, max(1, _MAX_PAIRS // n)):
-                        ii = sel[s : s + max(1, _MAX_PAIRS // n)]
-                        rays = pending[ii]
-                        t[ii], jg[ii] = _nearest_hits(self._p[:n], self._e[:n], o[rays], a[rays])
-                    continue
-                kmax = max(1, int(ray_counts[sel].max()))
-                # One table row per bin of this bucket (not per bin of the pass: a few big
-                # candidate lists times every bin would not fit in memory).
-                rows, row_of = np.unique(inv[sel], return_inverse=True)
-                table = np.full((rows.size, kmax), n, dtype=np.int64)
-                for k, row in enumerate(rows.tolist()):
-                    c = lists[row]
-                    table[k, : c.size] = c
-                step = max(1, _MAX_PAIRS // kmax)
-                for s in range(0, sel.size, step):
-                    ii = sel[s : s + step]
-                    rays = pending[ii]
-                    cand = table[row_of[s : s + step]]  # (R, K) segment indices, padded with n
-                    ts = _hit_distances(
-                        self._p[cand, 0],
-                        self._p[cand, 1],
-                        self._e[cand, 0],
-                        self._e[cand, 1],
-                        o[rays, 0:1],
-                        o[rays, 1:2],
-                        u[rays, 0:1],
-                        u[rays, 1:2],
-                    )
-                    col = np.argmin(ts, axis=1)
-                    t[ii] = ts[np.arange(ii.size), col]
-                    jg[ii] = cand[np.arange(ii.size), col]
+            t, jg = self._pass_hits(o, a, u, pending, inv, lists, ray_counts)
             ok = np.isfinite(t) & (t <= max_range_m) & (final | (t <= r))
             dist[pending[ok]] = t[ok]
             seg[pending[ok]] = jg[ok]
             pending = pending[~ok & ~final]
             r = min(3.0 * r, float(max_range_m))
         return _finish_hits(self.segments, a, dist, seg)
+
+    def _pass_hits(
+        self,
+        o: FloatArray,
+        a: FloatArray,
+        u: FloatArray,
+        pending: npt.NDArray[np.int64],
+        inv: npt.NDArray[np.int64],
+        lists: list[npt.NDArray[np.int64]],
+        ray_counts: npt.NDArray[np.int64],
+    ) -> tuple[FloatArray, npt.NDArray[np.int64]]:
+        """Nearest candidate hit (distance [m], segment) of each pending ray in one pass:
+        `inv` maps a ray to its bin, `lists` holds each bin's candidate segments."""
+        n = len(self)
+        t = np.empty(pending.size)
+        jg = np.empty(pending.size, dtype=np.int64)
+        # Buckets of rays with similar candidate counts (padding wastes at most 2x); rays
+        # with candidates for most of the world test all segments by broadcasting instead.
+        if pending.size <= _SMALL_CALL_RAYS:  # one bucket: less bookkeeping per call
+            dense = int(ray_counts.max()) * _DENSE_FRACTION_INV >= n
+            bucket = np.full(pending.size, -1 if dense else 0, dtype=np.int64)
+        else:
+            bucket = np.where(
+                ray_counts * _DENSE_FRACTION_INV >= n,
+                -1,
+                np.ceil(np.log2(np.maximum(ray_counts, 1))).astype(np.int64),
+            )
+        buckets = np.unique(bucket).tolist() if bucket.size > _SMALL_CALL_RAYS else [bucket[0]]
+        for b in buckets:
+            sel = np.flatnonzero(bucket == b)
+            if b < 0:
+                for s in range(0, sel.size, max(1, _MAX_PAIRS // n)):
+                    ii = sel[s : s + max(1, _MAX_PAIRS // n)]
+                    rays = pending[ii]
+                    t[ii], jg[ii] = _nearest_hits(self._p[:n], self._e[:n], o[rays], a[rays])
+                continue
+            kmax = max(1, int(ray_counts[sel].max()))
+            # One table row per bin of this bucket (not per bin of the pass: a few big
+            # candidate lists times every bin would not fit in memory).
+            rows, row_of = np.unique(inv[sel], return_inverse=True)
+            table = np.full((rows.size, kmax), n, dtype=np.int64)
+            for k, row in enumerate(rows.tolist()):
+                c = lists[row]
+                table[k, : c.size] = c
+            step = max(1, _MAX_PAIRS // kmax)
+            for s in range(0, sel.size, step):
+                ii = sel[s : s + step]
+                rays = pending[ii]
+                cand = table[row_of[s : s + step]]  # (R, K) segment indices, padded with n
+                ts = _hit_distances(
+                    self._p[cand, 0],
+                    self._p[cand, 1],
+                    self._e[cand, 0],
+                    self._e[cand, 1],
+                    o[rays, 0:1],
+                    o[rays, 1:2],
+                    u[rays, 0:1],
+                    u[rays, 1:2],
+                )
+                col = np.argmin(ts, axis=1)
+                t[ii] = ts[np.arange(ii.size), col]
+                jg[ii] = cand[np.arange(ii.size), col]
+        return t, jg
 
     def _candidates(self, r: float, keys: npt.NDArray[np.int64]) -> list[npt.NDArray[np.int64]]:
         """Sorted candidate segment indices of the origin cells `keys` at search radius r [m]."""

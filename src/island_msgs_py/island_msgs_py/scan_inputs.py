@@ -23,7 +23,7 @@ from island_msgs_py.conversions import (
 )
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import clock_ns
-from island_msgs_py.stamps import Paired, ScanOdomPairer
+from island_msgs_py.stamps import Paired, ScanOdomPairer, paired_only
 from island_msgs_py.types import FloatArray
 
 ScanArrays = tuple[FloatArray, FloatArray]
@@ -47,7 +47,7 @@ def subscribe_paired_scans(
         except ConversionError as exc:
             warn("odom", exc)
             return
-        handle(pairer.odometry(t_ns, pose))
+        handle(paired_only(pairer.odometry(t_ns, pose)))
 
     def on_scan(msg: LaserScan) -> None:
         try:
@@ -58,7 +58,7 @@ def subscribe_paired_scans(
             warn("sonar/scan", exc)
             return
         dropped = pairer.dropped_scans
-        handle(pairer.scan(t_ns, scan))
+        handle(paired_only(pairer.scan(t_ns, scan)))
         if pairer.dropped_scans > dropped:
             warn("sonar/scan", ValueError("no odometry at or after a scan's stamp"))
 

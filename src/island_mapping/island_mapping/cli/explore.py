@@ -23,12 +23,12 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from island_msgs_py.json_io import atomic_write_text, pose_from_dict, pose_to_dict
-from island_msgs_py.types import Pose2D
-from island_sim.core.world import WorldError
+from island_msgs_py.types import FloatArray, Pose2D
+from island_sim.core.world import World, WorldError
 from island_sim.core.world_loader import load_world
 
 from island_mapping.cli import CliError
@@ -52,6 +52,9 @@ from island_mapping.core.placement import (
 from island_mapping.core.route import NavigateError
 from island_mapping.evaluation.navigate import SimSetup
 from island_mapping.evaluation.routes import EdgeResult, evaluate_routes
+
+if TYPE_CHECKING:
+    from island_mapping.runner import RunRecord
 
 PROGRESS_STEPS = 1000
 """Resolution of the progress bar (per mille of the simulated duration)."""
@@ -149,15 +152,12 @@ def run(args: argparse.Namespace) -> int:
         parse_pose,
     )
     from island_mapping.evaluation.world_eval import compact_events
-    from island_mapping.runner import RunConfig, RunError, RunParameterError, resolve_domain_id
+    from island_mapping.runner import RunConfig, RunError, RunParameterError
     from island_mapping.runner import run as run_nodes
-    from island_mapping.viz.explore import exploration_figure, strategies_table, topology_figure
 
     if not args.sim_seconds > 0:
         raise CliError(f"--sim-seconds must be > 0, got {args.sim_seconds}")
-    params = parse_node_assignments(args.param, "--param")
-    builder = params.setdefault("island_builder_node", {})
-    builder.update(parse_assignments(args.builder_param, "--builder-param"))
+    params = _node_params(args.param, args.builder_param)
     try:
         world = load_world(args.world, args.resolution)
     except WorldError as exc:
@@ -176,12 +176,7 @@ def run(args: argparse.Namespace) -> int:
     bar = None if args.quiet else ProgressBar(f"explore {world.name}")
     progress = None if bar is None else (
         lambda frac: bar(round(frac * PROGRESS_STEPS), PROGRESS_STEPS))
-    try:
-        domain = resolve_domain_id(-1 if args.domain_id is None else args.domain_id)
-    except RunParameterError as exc:
-        raise CliError(str(exc)) from None
-    print(f"islands explore: ROS_DOMAIN_ID={domain} (watch with "
-          f"`ROS_DOMAIN_ID={domain} islands topic echo /hall_follower/strategy`)", file=sys.stderr)
+    domain = _domain_id(args.domain_id)
     cfg = RunConfig(world=spec, seed=args.seed, sim_seconds=args.sim_seconds,
                     record_dir="" if args.no_record else str(bag_dir),
                     wall_timeout_s=args.wall_timeout, domain_id=domain, params=params)
@@ -195,11 +190,7 @@ def run(args: argparse.Namespace) -> int:
     graph = rec.graph
     graph.save_all(out)
     title = f"{world.name}, seed {args.seed}, {rec.sim_seconds:.0f} s"
-    exploration_figure(world.segments, rec.truth_path, rec.events, out / "exploration.png",
-                       title=f"Exploration: {title} (cf. paper Fig. 4a)")
-    topology_figure(graph, out / "topology.png",
-                    title=f"Islands of reliability: {title} (cf. paper Fig. 4b)")
-    atomic_write_text(out / "strategies.txt", strategies_table(graph))
+    _write_figures(world, rec, out, title)
     t0 = time.monotonic()
     setup = rec.sim_setup if rec.sim_setup is not None else SimSetup(world=world)
     routes = _route_summary(graph, setup, rec.events, args.routes, args.seed)
@@ -218,18 +209,7 @@ def run(args: argparse.Namespace) -> int:
         "collisions": rec.collisions,
         "lockstep_timeouts": rec.lockstep_timeouts,
         "revisit_refusals": rec.revisit_refusals,
-        "island_origins_truth": {str(k): pose_to_dict(v) for k, v in origins.items()},
-        "island_places": {
-            str(k): classify_place(world.segments, v.x, v.y).value for k, v in origins.items()
-        },
-        "island_feature_distance_m": {
-            str(k): feature_distance_m(world.segments, v.x, v.y) for k, v in origins.items()
-        },
-        "placement_counts": placement_counts(world.segments, origins.values()),
-        "plain_hallway_islands": sum(
-            classify_place(world.segments, v.x, v.y) is PlaceKind.PLAIN_HALLWAY
-            for v in origins.values()
-        ),
+        **_placement_summary(world.segments, origins),
         "routes": routes,
         "bag": str(rec.bag_dir) if rec.bag_dir is not None else None,
         "world_spec": spec,
@@ -240,6 +220,63 @@ def run(args: argparse.Namespace) -> int:
         "builder_events": compact_events(rec.events),
     }
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    _print_result(summary, routes, out)
+    return 0
+
+
+def _node_params(param: list[str], builder_param: list[str]
+                 ) -> dict[str, dict[str, Any]]:
+    """--param NODE:NAME=V and --builder-param NAME=V as parameters per node."""
+    params = parse_node_assignments(param, "--param")
+    params.setdefault("island_builder_node", {}).update(
+        parse_assignments(builder_param, "--builder-param"))
+    return params
+
+
+def _domain_id(requested: int | None) -> int:
+    """The run's ROS_DOMAIN_ID (the requested one, the environment's, or a random private one),
+    printed with how to watch the run."""
+    from island_mapping.runner import RunParameterError, resolve_domain_id
+
+    try:
+        domain = resolve_domain_id(-1 if requested is None else requested)
+    except RunParameterError as exc:
+        raise CliError(str(exc)) from None
+    print(f"islands explore: ROS_DOMAIN_ID={domain} (watch with "
+          f"`ROS_DOMAIN_ID={domain} islands topic echo /hall_follower/strategy`)", file=sys.stderr)
+    return domain
+
+
+def _write_figures(world: World, rec: RunRecord, out: Path, title: str) -> None:
+    """exploration.png (Fig. 4a), topology.png (Fig. 4b), strategies.txt (Table 1)."""
+    from island_mapping.viz.explore import exploration_figure, strategies_table, topology_figure
+
+    exploration_figure(world.segments, rec.truth_path, rec.events, out / "exploration.png",
+                       title=f"Exploration: {title} (cf. paper Fig. 4a)")
+    topology_figure(rec.graph, out / "topology.png",
+                    title=f"Islands of reliability: {title} (cf. paper Fig. 4b)")
+    atomic_write_text(out / "strategies.txt", strategies_table(rec.graph))
+
+
+def _placement_summary(segments: FloatArray, origins: dict[int, Pose2D]) -> dict[str, Any]:
+    """Where the islands' true origins landed (summary.json keys)."""
+    return {
+        "island_origins_truth": {str(k): pose_to_dict(v) for k, v in origins.items()},
+        "island_places": {
+            str(k): classify_place(segments, v.x, v.y).value for k, v in origins.items()
+        },
+        "island_feature_distance_m": {
+            str(k): feature_distance_m(segments, v.x, v.y) for k, v in origins.items()
+        },
+        "placement_counts": placement_counts(segments, origins.values()),
+        "plain_hallway_islands": sum(
+            classify_place(segments, v.x, v.y) is PlaceKind.PLAIN_HALLWAY
+            for v in origins.values()
+        ),
+    }
+
+
+def _print_result(summary: dict[str, Any], routes: dict[str, Any], out: Path) -> None:
     print(json.dumps({k: summary[k] for k in (
         "world", "sim_seconds", "real_time_factor", "attempts", "accepted", "dismissed",
         "failed_at_once", "revisits", "islands", "edges", "plain_hallway_islands",
@@ -249,4 +286,3 @@ def run(args: argparse.Namespace) -> int:
               f"global odometry {routes['global_odometry_success_rate']:.0%} "
               f"over {routes['pairs']} pairs")
     print(f"results in {out}/")
-    return 0

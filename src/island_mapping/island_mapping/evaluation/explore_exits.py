@@ -157,8 +157,7 @@ def explore_by_exits(
     explorer = Explorer(ecfg, nav, setup.follower.perception,
                         setup.follower.default_hall_width_m, on_fix=judge)
     builder = IslandBuilder(builder_cfg, hooks=explorer_hooks(ecfg, lambda: graph))
-    steps = max(1, round(50.0 / 10.0))
-    dt = 1.0 / 50.0
+    steps, dt = max(1, round(50.0 / 10.0)), 1.0 / 50.0
     events: list[dict[str, Any]] = []
     truth, odom = [], []
     unanswered = 0

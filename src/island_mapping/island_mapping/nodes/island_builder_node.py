@@ -45,6 +45,7 @@ from island_msgs_py.ros_params import (
     log_ready,
     run_node,
 )
+from island_msgs_py.stamps import ScanOdomPairer
 from island_msgs_py.types import ControlStrategy, IslandTypeError
 from nav_msgs.msg import Odometry
 from rcl_interfaces.srv import SetParameters
@@ -57,6 +58,13 @@ from std_srvs.srv import SetBool, Trigger
 
 from island_mapping.core import builder as core
 from island_mapping.core.builder import BuilderEvent, CommandMode, EventKind
+from island_mapping.core.builder.inputs import (
+    GROUND_TRUTH,
+    ScanArrays,
+    checked_cov,
+    checked_scan,
+    feed,
+)
 from island_msgs_py import conversions as cv
 
 NODE_NAME = "island_builder_node"
@@ -93,7 +101,8 @@ class IslandBuilderNode(Node):
         self.follower_enabled: bool | None = None
         self._enable_pending: bool | None = None
         self._base_frame = self.node_cfg.frame_prefix + BASE_FRAME
-        self.sync = core.StampSync(self.builder, ODOM_BUFFER)
+        self.pairer: ScanOdomPairer[ScanArrays] = ScanOdomPairer(
+            ODOM_BUFFER, every_odometry=True, streams=(GROUND_TRUTH,))
         self.cmd_pub = self.create_publisher(TwistStamped, "cmd_vel", STREAM_QOS)
         self.event_pub = self.create_publisher(String, "island_builder/events", STREAM_QOS)
         self.enable_cli = self.create_client(SetBool, "hall_follower/enable")
@@ -132,12 +141,14 @@ class IslandBuilderNode(Node):
         """Messages ignored as bad so far."""
         return self._warn.count
 
-    # --- inputs: each scan meets the odometry and ground truth of its stamp (core.StampSync) --
+    # --- inputs: each scan meets the odometry and ground truth of its stamp, after every
+    # odometry increment up to it (island_msgs_py.stamps.ScanOdomPairer, every_odometry) -----
     def _on_odom(self, msg: Odometry) -> None:
         try:
             pose, cov, t_ns = odometry_to_pose(msg)
             check_stamp(t_ns, clock_ns(self), "/odom")
-            self._act(self.sync.odometry(t_ns, pose, cov))
+            released = self.pairer.odometry(t_ns, pose, checked_cov(t_ns * 1e-9, cov))
+            self._act(feed(self.builder, released))
         except (ConversionError, ValueError) as exc:
             self._warn("/odom", exc)
 
@@ -145,8 +156,8 @@ class IslandBuilderNode(Node):
         try:
             pose, _, t_ns = odometry_to_pose(msg)
             check_stamp(t_ns, clock_ns(self), "/ground_truth")
-            self.sync.ground_truth(t_ns, pose)
-        except ConversionError as exc:
+            self._act(feed(self.builder, self.pairer.stream(GROUND_TRUTH, t_ns, pose)))
+        except (ConversionError, ValueError) as exc:
             self._warn("/ground_truth", exc)
 
     def _on_strategy(self, msg: String) -> None:
@@ -160,7 +171,8 @@ class IslandBuilderNode(Node):
             ranges, angles = scan_to_arrays(msg)
             t_ns = time_to_ns(msg.header.stamp)
             check_stamp(t_ns, clock_ns(self), "/sonar/scan")
-            self._act(self.sync.scan(t_ns, ranges, angles))
+            scan = checked_scan(t_ns * 1e-9, ranges, angles)
+            self._act(feed(self.builder, self.pairer.scan(t_ns, scan)))
         except (ConversionError, ValueError) as exc:
             self._warn("/sonar/scan", exc)
 

@@ -14,7 +14,8 @@ Pure decision logic (numpy only, no ROS). Modules, each one job:
 - `diagnostics`: counts, refusals, probes;
 - `machine`: IslandBuilder, the state machine that wires them (the live builder);
 - `passive`: PassiveBuilder, the same core on a recording (no star: a log cannot be driven);
-- `stamps`: StampSync, scan/odometry stamp pairing for the node.
+- `inputs`: checked scans and odometry, and `feed`, which applies what the project's one
+  stamp pairer (`island_msgs_py.stamps.ScanOdomPairer`, every_odometry) released.
 """
 
 from island_mapping.core.builder.checks import leg_heading, localizes_back, register_look
@@ -43,17 +44,25 @@ from island_mapping.core.builder.events import (
     event_to_dict,
 )
 from island_mapping.core.builder.follow import follower_settled, follower_turning
+from island_mapping.core.builder.inputs import (
+    GROUND_TRUTH,
+    BuilderInputs,
+    checked_cov,
+    checked_scan,
+    feed,
+)
 from island_mapping.core.builder.machine import IslandBuilder
 from island_mapping.core.builder.passive import IslandRun, PassiveBuilder, PassiveConfig
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
-from island_mapping.core.builder.stamps import StampSync
 from island_mapping.core.builder.star import Survey, peak_origin
 
 __all__ = [
+    "GROUND_TRUTH",
     "BuilderCommand",
     "BuilderConfig",
     "BuilderError",
     "BuilderEvent",
+    "BuilderInputs",
     "CommandMode",
     "CoreMeasures",
     "Diagnostics",
@@ -73,11 +82,13 @@ __all__ = [
     "Refusal",
     "RelativeCovariance",
     "RevisitConfig",
-    "StampSync",
     "StarConfig",
     "Survey",
+    "checked_cov",
+    "checked_scan",
     "eq3_bound",
     "event_to_dict",
+    "feed",
     "follower_settled",
     "follower_turning",
     "leg_heading",

@@ -67,6 +67,7 @@ from island_mapping.core.builder.hooks import (
     facing_exit,
     with_exits,
 )
+from island_mapping.core.builder.inputs import checked_cov, checked_scan
 from island_mapping.core.builder.ledger import Ledger
 from island_mapping.core.builder.motion import STOP, LookPhase, Twist
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
@@ -83,6 +84,7 @@ class _State(StrEnum):
     IDLE = "idle"  # managed mode: at an island, the explorer drives (core.builder.hooks)
 
 
+# size-ok: one method per state and transition (488 lines); the decisions are already functions
 class IslandBuilder:
     """The island builder state machine (see the module docstring).
 
@@ -121,7 +123,7 @@ class IslandBuilder:
 
     def on_odometry(self, t_s: float, odom_pose: Pose2D, cov3x3: npt.ArrayLike) -> None:
         """Latest odometry pose and its 3x3 covariance (x, y, theta) [m, rad]."""
-        cov = _checked_cov(t_s, cov3x3)
+        cov = checked_cov(t_s, cov3x3)
         moved = self._track.update(odom_pose, cov)
         if self._state is _State.FOLLOWING:
             self._path_m += moved
@@ -140,7 +142,7 @@ class IslandBuilder:
 
     def on_scan(self, t_s: float, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike) -> None:
         """A sonar scan: ranges from the robot centre [m] (inf = no echo) at robot-frame angles."""
-        r, a = _checked_scan(t_s, ranges_m, angles_rad)
+        r, a = checked_scan(t_s, ranges_m, angles_rad)
         self._t = max(self._t, t_s)
         self._last_scan = (r, a)
         if self._odom is None:
@@ -572,24 +574,3 @@ class IslandBuilder:
             return self._attempt.probe
         return None
 
-
-def _checked_cov(t_s: float, cov3x3: npt.ArrayLike) -> FloatArray:
-    cov = np.asarray(cov3x3, dtype=np.float64)
-    if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
-        raise BuilderError(
-            f"on_odometry: covariance must be a finite 3x3 matrix, got shape {cov.shape}"
-        )
-    if not math.isfinite(t_s):
-        raise BuilderError(f"on_odometry: time must be finite, got {t_s}")
-    return cov
-
-
-def _checked_scan(t_s: float, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike
-                  ) -> tuple[FloatArray, FloatArray]:
-    r = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
-    a = np.asarray(angles_rad, dtype=np.float64).reshape(-1)
-    if r.shape != a.shape:
-        raise BuilderError(f"on_scan: {r.shape[0]} ranges but {a.shape[0]} angles")
-    if not math.isfinite(t_s):
-        raise BuilderError(f"on_scan: time must be finite, got {t_s}")
-    return r, a
