@@ -1,7 +1,9 @@
 """islands explore: the main job (paper section 8.2).
 
 Runs every node in one process on simulated time (robot, sonar, hall follower, island builder,
-island localizer, topological graph server, recorder), then writes to --out:
+island localizer, topological graph server, recorder; with --policy exits also the explorer,
+which drives by the map to the nearest unexplored exit, and the run ends when it says no
+unexplored exit is left, or at --sim-seconds), then writes to --out:
 
   graph.json, graph.geojson, graph.graphml   the map M = {V, E} (Nav2 Route Server GeoJSON)
   exploration.png                            path and island attempts, like Fig. 4a
@@ -50,6 +52,7 @@ from island_mapping.core.placement import (
     placement_counts,
 )
 from island_mapping.core.route import NavigateError
+from island_mapping.evaluation.explore_eval import Policy
 from island_mapping.evaluation.navigate import SimSetup
 from island_mapping.evaluation.routes import EdgeResult, evaluate_routes
 
@@ -85,6 +88,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--param", action="append", default=[], metavar="NODE:NAME=VALUE",
                         help="any node's parameter, e.g. "
                              "odometry_node:odometry.var_heading_rad2_per_rad=0.002; repeatable")
+    parser.add_argument("--policy", choices=[p.value for p in Policy],
+                        default=Policy.HALL_FOLLOWING.value,
+                        help="hall_following (default): the paper's plain hall following; "
+                             "exits: exploration by the map (explorer_node), ending by itself "
+                             "when no unexplored exit is left")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -141,6 +149,15 @@ def _edge_summary(e: EdgeResult) -> dict[str, Any]:
             "error_deg": round(e.error_deg, 2)}
 
 
+def _ending(by_itself: bool | None, exits_left: int | None, sim_s: float) -> str:
+    """What the console says about how an exploration by exits ended."""
+    if by_itself:
+        return (f"exploration ended by itself at {sim_s:.0f} s: no unexplored exit left "
+                f"(the map shows {exits_left})")
+    return (f"exploration stopped at the sim-time cap ({sim_s:.0f} s) with {exits_left} "
+            "unexplored exit(s) left")
+
+
 def run(args: argparse.Namespace) -> int:
     from island_mapping.cli.evaluate import (
         check_image_resolution,
@@ -182,9 +199,11 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     print(f"islands explore: ROS_DOMAIN_ID={domain} (watch with "
           f"`ROS_DOMAIN_ID={domain} islands topic echo /hall_follower/strategy`)", file=sys.stderr)
+    policy = Policy(args.policy)
     cfg = RunConfig(world=spec, seed=args.seed, sim_seconds=args.sim_seconds,
                     record_dir="" if args.no_record else str(bag_dir),
-                    wall_timeout_s=args.wall_timeout, domain_id=domain, params=params)
+                    wall_timeout_s=args.wall_timeout, domain_id=domain, params=params,
+                    policy=policy)
     try:
         rec = run_nodes(cfg, progress)
     except RunParameterError as exc:
@@ -239,6 +258,9 @@ def run(args: argparse.Namespace) -> int:
                                             rec.events, routes, out, title),
         "builder_events": compact_events(rec.events),
     }
+    if policy is Policy.EXITS:
+        summary.update({"policy": policy.value, "ended_by_itself": rec.ended_by_itself,
+                        "exits_left": rec.exits_left, "explorer": rec.explorer})
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     print(json.dumps({k: summary[k] for k in (
         "world", "sim_seconds", "real_time_factor", "attempts", "accepted", "dismissed",
@@ -248,5 +270,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"routes: islands {routes['islands_success_rate']:.0%}, "
               f"global odometry {routes['global_odometry_success_rate']:.0%} "
               f"over {routes['pairs']} pairs")
+    if policy is Policy.EXITS:
+        print(_ending(rec.ended_by_itself, rec.exits_left, rec.sim_seconds))
     print(f"results in {out}/")
     return 0
