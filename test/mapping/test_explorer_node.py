@@ -250,3 +250,29 @@ def test_a_small_world_explored_live_by_exits_ends_by_itself(
     exits = [e for i in graph.islands() for e in i.exits]
     assert exits and all(e.state is not ExitState.UNEXPLORED for e in exits)
     assert "ended by itself" in capsys.readouterr().out
+
+
+def test_bad_messages_to_the_explorer_are_counted_and_it_decides_on(
+        ros_context: Any, spin: Any) -> None:
+    ctx = ros_context
+    explorer = ExplorerNode(context=ctx, parameter_overrides=[_p("wait_for_services", False)])
+    world = _FakeRobotAndBuilder(ctx)
+    progress = world.create_publisher(String, "/hall_follower/progress", QOS)
+    ex = SingleThreadedExecutor(context=ctx)
+    for n in (explorer, world):
+        ex.add_node(n)
+    try:
+        assert spin(ex, lambda: world.count_subscribers("/island_builder/decision") > 0, 5.0)
+        world.decision.publish(String(data="not json"))
+        world.decision.publish(String(data=json.dumps({"stamp_ns": 1, "mode": "fly",
+                                                       "events": []})))
+        world.graph.publish(String(data='{"islands": 3}'))
+        progress.publish(String(data="Fly 3"))
+        assert spin(ex, lambda: explorer.bad_msg_count >= 4, 5.0)
+        world.tick(1, CommandMode.IDLE, _handed_back(1))
+        assert spin(ex, lambda: explorer.scans_decided == 1 and bool(world.answers), 5.0)
+        assert world.answers == [100_000_000]
+    finally:
+        ex.shutdown()
+        for n in (explorer, world):
+            n.destroy_node()

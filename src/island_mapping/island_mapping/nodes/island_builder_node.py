@@ -17,7 +17,7 @@ island_mapping.core.builder; localization in the islands is island_localizer_nod
 Managed mode (`managed`, read-only; exploration by the map, issue 16: an explorer_node drives
 between islands): the builder installs the explorer's hooks (`core.explore.explorer_hooks`
 with the `explorer.*` parameters: exits found at acceptance, the revisit gate), hands back at an
-island by going idle (the follower stays paused, the explorer answers the scans) and adds
+island by going idle (the follower stays paused, the explorer answers the scans), and adds:
 Publishes   island_builder/decision  std_msgs/String JSON, one per scan decided: `{"stamp_ns",
                                      "mode": follow|drive|idle, "events": [...]}` (the
                                      explorer pairs it with the scan of that stamp)
