@@ -68,6 +68,7 @@ setup(
             'island_localizer_node = island_mapping.nodes.island_localizer_node:main',
             'topo_graph_server_node = island_mapping.nodes.topo_graph_server_node:main',
             'recorder_node = island_mapping.nodes.recorder_node:main',
+            'explorer_node = island_mapping.nodes.explorer_node:main',
             'islands = island_mapping.cli:main'
         ],
     },

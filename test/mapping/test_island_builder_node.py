@@ -15,7 +15,9 @@ import pytest
 import yaml
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from island_mapping.core.builder import BuilderConfig
+from island_mapping.core.explore import ExplorerConfig
 from island_mapping.core.tracker import TrackerConfig
+from island_mapping.nodes.explorer_node import ExplorerNodeConfig
 from island_mapping.nodes.island_builder_node import IslandBuilderNode, IslandBuilderNodeConfig
 from island_mapping.nodes.island_localizer_node import IslandLocalizerNode
 from island_mapping.nodes.topo_graph_server_node import TopoGraphServerNode
@@ -162,7 +164,9 @@ def _flatten_yaml(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 @pytest.mark.parametrize(("node", "defaults"), [
-    ("island_builder_node", {"": IslandBuilderNodeConfig(), "builder.": BuilderConfig()}),
+    ("island_builder_node", {"": IslandBuilderNodeConfig(), "builder.": BuilderConfig(),
+                             "explorer.": ExplorerConfig()}),
+    ("explorer_node", {"": ExplorerNodeConfig()}),
     ("island_localizer_node", {"tracker.": TrackerConfig()}),
 ])
 def test_yaml_repeats_the_config_defaults(node: str, defaults: dict[str, Any]) -> None:

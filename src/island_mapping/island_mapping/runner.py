@@ -6,6 +6,11 @@ island_builder_node, island_localizer_node and topo_graph_server_node, plus a Ru
 writes every topic to a rosbag2 MCAP directory, and an observer that keeps what the figures and
 the summary need (true and odometric paths, builder events).
 
+Policy `exits` (exploration by the map, issue 16) adds explorer_node, runs the builder managed
+(`managed:=true`) and the follower straight-first (the explorer, not the follower, chooses where
+to branch; as the offline harness `evaluation.explore_exits` does), and ends when the explorer
+reports done or at `sim_seconds`. Policy `hall_following` is the paper's plain run.
+
 The nodes talk only over their topics and services, exactly as they do when started one by one
 with `ros2 run`; this module only creates them with parameter overrides and spins.
 """
@@ -29,6 +34,7 @@ from island_msgs_py.inputs import parse_int
 from island_msgs_py.limits import MAX_DOMAIN_ID, MAX_SEED
 from island_msgs_py.ros_params import ensure_ros_env
 from island_msgs_py.types import FloatArray
+from island_sim.core.hall_follower_config import HallFollowerConfig
 from island_sim.nodes.hall_follower_node import HallFollowerNode
 from island_sim.nodes.odometry_node import OdometryNode
 from island_sim.nodes.sonar_node import SonarNode
@@ -41,8 +47,12 @@ from rclpy.qos import QoSProfile
 from std_msgs.msg import String
 
 from island_mapping.bag.recorder import RunRecorder
+from island_mapping.core.explore import unexplored_count
 from island_mapping.core.graph import TopoGraph
+from island_mapping.evaluation.explore_eval import Policy
+from island_mapping.evaluation.explore_exits import straight_first
 from island_mapping.evaluation.navigate import SimSetup
+from island_mapping.nodes.explorer_node import ExplorerNode
 from island_mapping.nodes.island_builder_node import IslandBuilderNode
 from island_mapping.nodes.island_localizer_node import IslandLocalizerNode
 from island_mapping.nodes.topo_graph_server_node import TopoGraphServerNode
@@ -57,8 +67,10 @@ starts (it maps from the first step, so a recording replays into the same events
 PRIVATE_DOMAIN_MIN, PRIVATE_DOMAIN_MAX = 102, 232
 """Domains picked for unattended runs: valid for Fast DDS on Linux, above those tests use."""
 NODE_NAMES = ("odometry_node", "sonar_node", "hall_follower_node", "island_builder_node",
-              "island_localizer_node", "topo_graph_server_node")
-"""The nodes of a run, by the names `RunConfig.params` takes."""
+              "island_localizer_node", "topo_graph_server_node", "explorer_node")
+"""The nodes of a run, by the names `RunConfig.params` takes (explorer_node: policy exits)."""
+EXPLORER_PREFIX = "explorer."
+"""explorer_node's mission parameters; the managed builder takes the same (exits, revisits)."""
 RECORDED_TOPICS_REQUIRED = ("/odom", "/ground_truth", "/sonar/scan", "/cmd_vel", "/clock")
 
 
@@ -90,6 +102,11 @@ class RunConfig:
         default_factory=dict,
         metadata={"help": "extra parameter overrides per node name, e.g. {'odometry_node': {...}}"},
     )
+    policy: Policy = field(
+        default=Policy.HALL_FOLLOWING,
+        metadata={"help": "hall_following: the paper's plain run; exits: exploration by the map "
+                          "(explorer_node), ending when it is done or at sim_seconds"},
+    )
 
 
 @dataclass
@@ -109,6 +126,10 @@ class RunRecord:
     revisit_refusals: dict[str, int] = field(default_factory=dict)
     # What the simulated robot ran with (parameters included): route evaluation drives the same.
     sim_setup: SimSetup | None = None
+    # Policy exits: did the explorer say it was done, and what it said last (status, counts).
+    ended_by_itself: bool | None = None
+    exits_left: int | None = None
+    explorer: dict[str, Any] = field(default_factory=dict)
 
     @property
     def real_time_factor(self) -> float:
@@ -202,10 +223,12 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
     executor = SingleThreadedExecutor(context=ctx)
     try:
         sim_time = {"use_sim_time": True}
-        unknown = sorted(set(cfg.params) - set(NODE_NAMES))
+        exits = cfg.policy is Policy.EXITS
+        names = NODE_NAMES if exits else NODE_NAMES[:-1]
+        unknown = sorted(set(cfg.params) - set(names))
         if unknown:
             raise RunParameterError(f"no node {', '.join(unknown)} in the run (nodes: "
-                           f"{', '.join(NODE_NAMES)})")
+                           f"{', '.join(names)}; explorer_node runs with the policy exits)")
         odo = _make_node(ctx, OdometryNode, "odometry_node", {
             "world": cfg.world, "seed": _seed(cfg.seed, 0), "sim.real_time_factor": 0.0,
             "sim.lockstep": True, "sim.stop_after_s": float(cfg.sim_seconds),
@@ -214,9 +237,13 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
                            {**sim_time, "world": cfg.world, "seed": _seed(cfg.seed, 1)}, cfg.params,
                            nodes)
         follower = _make_node(ctx, HallFollowerNode, "hall_follower_node",
-                              {**sim_time, "seed": _seed(cfg.seed, 2)}, cfg.params, nodes)
-        builder = _make_node(ctx, IslandBuilderNode, "island_builder_node", sim_time, cfg.params,
-                             nodes)
+                              {**sim_time, "seed": _seed(cfg.seed, 2),
+                               **(_straight_first() if exits else {})}, cfg.params, nodes)
+        builder = _make_node(ctx, IslandBuilderNode, "island_builder_node",
+                             {**sim_time, **(_managed(cfg.params) if exits else {})},
+                             cfg.params, nodes)
+        explorer = _make_node(ctx, ExplorerNode, "explorer_node", sim_time, cfg.params,
+                              nodes) if exits else None
         _make_node(ctx, IslandLocalizerNode, "island_localizer_node", sim_time, cfg.params, nodes)
         server = _make_node(ctx, TopoGraphServerNode, "topo_graph_server_node",
                             {**sim_time, "storage_path": ""}, cfg.params, nodes)
@@ -230,9 +257,9 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
         for n in nodes[:-1]:
             if n is not odo:
                 executor.add_node(n)
-        _wait_for_builder(executor, builder)
+        _wait_for_builder(executor, builder, explorer)
         executor.add_node(odo)  # the clock starts
-        wall = _spin_until_finished(executor, odo, cfg, progress)
+        wall = _spin_until_finished(executor, odo, explorer, cfg, progress)
         if progress is not None:
             progress(1.0)
         return RunRecord(
@@ -248,6 +275,14 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
             sim_setup=SimSetup(world=odo.world, sonar=sonar.cfg.sonar, robot=odo.cfg.robot,
                                odometry=odo.cfg.odometry, follower=follower.cfg.follower),
             bag_dir=recorder.path if recorder is not None else None,
+            ended_by_itself=None if explorer is None else explorer.done,
+            exits_left=None if explorer is None else unexplored_count(server.graph),
+            explorer={} if explorer is None else {
+                "status": explorer.explorer.status.to_dict(),
+                "counts": dict(explorer.explorer.counts),
+                "scans_decided": explorer.scans_decided,
+                "scans_answered": explorer.scans_answered,
+                "refused_requests": explorer.refused_requests + builder.refused_requests},
         )
     finally:
         if recorder is not None:
@@ -258,13 +293,15 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
         ctx.try_shutdown()
 
 
-def _spin_until_finished(executor: SingleThreadedExecutor, odo: OdometryNode, cfg: RunConfig,
+def _spin_until_finished(executor: SingleThreadedExecutor, odo: OdometryNode,
+                         explorer: ExplorerNode | None, cfg: RunConfig,
                          progress: Callable[[float], None] | None) -> float:
-    """Spin until the simulator has run `cfg.sim_seconds`, then let the last messages and the
-    builder's final service calls arrive; returns the wall time since the clock started [s]."""
+    """Spin until the simulator has run `cfg.sim_seconds` (or the explorer, if any, is done),
+    then let the last messages and the builder's final service calls arrive; returns the wall
+    time since the clock started [s]."""
     wall0 = time.monotonic()
     last_report = -1.0
-    while not odo.finished:
+    while not odo.finished and not (explorer is not None and explorer.done):
         if time.monotonic() - wall0 > cfg.wall_timeout_s:
             raise RunError(
                 f"run did not reach {cfg.sim_seconds:.0f} s of sim time within "
@@ -281,12 +318,31 @@ def _spin_until_finished(executor: SingleThreadedExecutor, odo: OdometryNode, cf
     return time.monotonic() - wall0
 
 
-def _wait_for_builder(executor: SingleThreadedExecutor, builder: IslandBuilderNode) -> None:
-    """Spin until the builder maps (its services found) and hears the robot's topics."""
+def _straight_first() -> dict[str, Any]:
+    """The follower's parameters for policy exits: straight on at every decision."""
+    cfg = straight_first(HallFollowerConfig())
+    return {"follower.policy": cfg.policy.value, "follower.script": cfg.script}
+
+
+def _managed(params: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """The builder's parameters for policy exits: managed, with explorer_node's `explorer.*`
+    overrides (the exits and revisits it finds are the explorer's)."""
+    shared = {k: v for k, v in params.get("explorer_node", {}).items()
+              if k.startswith(EXPLORER_PREFIX)}
+    return {"managed": True, **shared}
+
+
+def _wait_for_builder(executor: SingleThreadedExecutor, builder: IslandBuilderNode,
+                      explorer: ExplorerNode | None = None) -> None:
+    """Spin until the builder maps (its services found) and hears the robot's topics, and the
+    explorer (if any) explores."""
     deadline = time.monotonic() + BUILDER_READY_WAIT_S
+    waiting: list[Node] = [builder] if explorer is None else [builder, explorer]
     while time.monotonic() < deadline:
-        if builder.mapping and all(s.get_publisher_count() > 0 for s in builder.subscriptions
-                                   if s.topic_name != "/clock"):
+        if builder.mapping and (explorer is None or explorer.exploring) and all(
+            s.get_publisher_count() > 0 for n in waiting for s in n.subscriptions
+            if s.topic_name not in ("/clock", "/island_builder/decision")
+        ):
             return
         executor.spin_once(timeout_sec=0.05)
     raise RunError(f"island_builder_node did not start mapping within {BUILDER_READY_WAIT_S:g} "

@@ -1,7 +1,9 @@
 """islands explore: the main job (paper section 8.2).
 
 Runs every node in one process on simulated time (robot, sonar, hall follower, island builder,
-island localizer, topological graph server, recorder), then writes to --out:
+island localizer, topological graph server, recorder; with --policy exits also the explorer,
+which drives by the map to the nearest unexplored exit, and the run ends when it says no
+unexplored exit is left, or at --sim-seconds), then writes to --out:
 
   graph.json, graph.geojson, graph.graphml   the map M = {V, E} (Nav2 Route Server GeoJSON)
   exploration.png                            path and island attempts, like Fig. 4a
@@ -50,6 +52,7 @@ from island_mapping.core.placement import (
     placement_counts,
 )
 from island_mapping.core.route import NavigateError
+from island_mapping.evaluation.explore_eval import Policy
 from island_mapping.evaluation.navigate import SimSetup
 from island_mapping.evaluation.routes import EdgeResult, evaluate_routes
 
@@ -88,6 +91,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--param", action="append", default=[], metavar="NODE:NAME=VALUE",
                         help="any node's parameter, e.g. "
                              "odometry_node:odometry.var_heading_rad2_per_rad=0.002; repeatable")
+    parser.add_argument("--policy", choices=[p.value for p in Policy],
+                        default=Policy.HALL_FOLLOWING.value,
+                        help="hall_following (default): the paper's plain hall following; "
+                             "exits: exploration by the map (explorer_node), ending by itself "
+                             "when no unexplored exit is left")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -144,6 +152,15 @@ def _edge_summary(e: EdgeResult) -> dict[str, Any]:
             "error_deg": round(e.error_deg, 2)}
 
 
+def _ending(by_itself: bool | None, exits_left: int | None, sim_s: float) -> str:
+    """What the console says about how an exploration by exits ended."""
+    if by_itself:
+        return (f"exploration ended by itself at {sim_s:.0f} s: no unexplored exit left "
+                f"(the map shows {exits_left})")
+    return (f"exploration stopped at the sim-time cap ({sim_s:.0f} s) with {exits_left} "
+            "unexplored exit(s) left")
+
+
 def run(args: argparse.Namespace) -> int:
     from island_mapping.cli.evaluate import (
         check_image_resolution,
@@ -176,10 +193,10 @@ def run(args: argparse.Namespace) -> int:
     bar = None if args.quiet else ProgressBar(f"explore {world.name}")
     progress = None if bar is None else (
         lambda frac: bar(round(frac * PROGRESS_STEPS), PROGRESS_STEPS))
-    domain = _domain_id(args.domain_id)
     cfg = RunConfig(world=spec, seed=args.seed, sim_seconds=args.sim_seconds,
                     record_dir="" if args.no_record else str(bag_dir),
-                    wall_timeout_s=args.wall_timeout, domain_id=domain, params=params)
+                    wall_timeout_s=args.wall_timeout, domain_id=_domain_id(args.domain_id),
+                    params=params, policy=Policy(args.policy))
     try:
         rec = run_nodes(cfg, progress)
     except RunParameterError as exc:
@@ -218,10 +235,19 @@ def run(args: argparse.Namespace) -> int:
         "world_evaluation": explore_figures(world, spec, args.resolution, start, graph,
                                             rec.events, routes, out, title),
         "builder_events": compact_events(rec.events),
+        **_explorer_summary(cfg.policy, rec),
     }
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     _print_result(summary, routes, out)
     return 0
+
+
+def _explorer_summary(policy: Policy, rec: RunRecord) -> dict[str, Any]:
+    """summary.json's keys of an exploration by exits: how it ended (none for plain runs)."""
+    if policy is not Policy.EXITS:
+        return {}
+    return {"policy": policy.value, "ended_by_itself": rec.ended_by_itself,
+            "exits_left": rec.exits_left, "explorer": rec.explorer}
 
 
 def _node_params(param: list[str], builder_param: list[str]
@@ -285,4 +311,6 @@ def _print_result(summary: dict[str, Any], routes: dict[str, Any], out: Path) ->
         print(f"routes: islands {routes['islands_success_rate']:.0%}, "
               f"global odometry {routes['global_odometry_success_rate']:.0%} "
               f"over {routes['pairs']} pairs")
+    if "ended_by_itself" in summary:
+        print(_ending(summary["ended_by_itself"], summary["exits_left"], summary["sim_seconds"]))
     print(f"results in {out}/")

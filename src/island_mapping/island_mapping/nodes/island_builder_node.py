@@ -9,9 +9,24 @@ Publishes   cmd_vel                  geometry_msgs/TwistStamped (the scan's stam
                                      while the builder drives
             island_builder/events    std_msgs/String, one JSON object per builder event
 Calls       hall_follower/enable (SetBool), hall_follower/reset (Trigger),
-            topo_graph/add (rcl_interfaces/SetParameters: `island` and `edge` JSON strings)
+            topo_graph/add (rcl_interfaces/SetParameters: `island`, `edge` and, managed,
+            `exit` JSON strings)
 All service calls are asynchronous; the executor is never blocked. The decisions are in
 island_mapping.core.builder; localization in the islands is island_localizer_node.
+
+Managed mode (`managed`, read-only; exploration by the map, issue 16: an explorer_node drives
+between islands): the builder installs the explorer's hooks (`core.explore.explorer_hooks`
+with the `explorer.*` parameters: exits found at acceptance, the revisit gate), hands back at an
+island by going idle (the follower stays paused, the explorer answers the scans), and adds:
+Publishes   island_builder/decision  std_msgs/String JSON, one per scan decided: `{"stamp_ns",
+                                     "mode": follow|drive|idle, "events": [...]}` (the
+                                     explorer pairs it with the scan of that stamp)
+Services    island_builder/explorer  rcl_interfaces/SetParameters, the explorer's requests in
+                                     order: `docked` {"island", "origin_odom"}, `handover`
+                                     {"island", "exit", "prefix"}, `abort` {}; one result per
+                                     item, a refused one with its reason (logged)
+The builder alone owns the hall follower in both modes: it pauses it while it drives or idles
+and, at a handover, restarts its record and resumes it.
 
 Names are relative to the node's namespace. Start-up: with `wait_for_services` (the default) the
 builder subscribes only once the hall follower's services and topo_graph/add are up, so whatever
@@ -48,6 +63,7 @@ from island_msgs_py.ros_params import (
 from island_msgs_py.stamps import ScanOdomPairer
 from island_msgs_py.types import ControlStrategy, IslandTypeError
 from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import SetParametersResult
 from rcl_interfaces.srv import SetParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -56,8 +72,10 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
+from island_mapping import conversions as mcv
 from island_mapping.core import builder as core
 from island_mapping.core.builder import BuilderEvent, CommandMode, EventKind
+from island_mapping.core.builder.hooks import graph_items
 from island_mapping.core.builder.inputs import (
     GROUND_TRUTH,
     ScanArrays,
@@ -65,12 +83,20 @@ from island_mapping.core.builder.inputs import (
     checked_scan,
     feed,
 )
-from island_msgs_py import conversions as cv
+from island_mapping.core.explore import (
+    Abort,
+    Docked,
+    ExplorerConfig,
+    Handover,
+    explorer_hooks,
+)
+from island_mapping.core.graph import TopoGraph
 
 NODE_NAME = "island_builder_node"
 ODOM_BUFFER = 200  # stamps kept for pairing scans with odometry (4 s at 50 Hz)
 BASE_FRAME = "base_link"  # the robot frame /cmd_vel is in (after frame_prefix)
 SERVICE_POLL_S = 0.1  # how often (wall clock) to look for the services mapping waits for
+WARN_THROTTLE_S = 1.0  # refused explorer requests are logged at most this often [s]
 PROGRESS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
 """The follower's record: only the newest matters (`set_strategy` overwrites)."""
 
@@ -88,6 +114,12 @@ class IslandBuilderNodeConfig:
     frame_prefix: str = field(
         default="", metadata={"help": "prepended to the cmd_vel frame base_link, e.g. 'robot1/'"}
     )
+    managed: bool = field(
+        default=False,
+        metadata={"help": "an explorer_node drives between islands: hand back at an island by "
+                  "going idle, take its requests on island_builder/explorer, publish "
+                  "island_builder/decision; false = the paper's plain hall following [bool]"},
+    )
 
 
 class IslandBuilderNode(Node):
@@ -95,7 +127,12 @@ class IslandBuilderNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         self.node_cfg = declare_config(self, "", IslandBuilderNodeConfig())
         self.cfg = declare_config(self, "builder", core.BuilderConfig())
-        self.builder = core.IslandBuilder(self.cfg)
+        self.explorer_cfg = declare_config(self, "explorer", ExplorerConfig())
+        managed = self.node_cfg.managed
+        hooks = explorer_hooks(self.explorer_cfg, TopoGraph) if managed else None
+        self.builder = core.IslandBuilder(self.cfg, hooks=hooks)
+        self.refused_requests = 0
+        """Explorer requests refused so far (malformed, or the builder could not take them)."""
         self._warn = BadMessageLog(self)
         # Confirmed state of the hall follower; None until the builder has claimed it.
         self.follower_enabled: bool | None = None
@@ -108,6 +145,10 @@ class IslandBuilderNode(Node):
         self.enable_cli = self.create_client(SetBool, "hall_follower/enable")
         self.reset_cli = self.create_client(Trigger, "hall_follower/reset")
         self.add_cli = self.create_client(SetParameters, "topo_graph/add")
+        if managed:
+            self.decision_pub = self.create_publisher(String, "island_builder/decision",
+                                                      STREAM_QOS)
+            self.create_service(SetParameters, "island_builder/explorer", self._on_explorer)
         self.mapping = False
         """Subscribed to the robot's topics (once the services are up, see wait_for_services)."""
         if self.node_cfg.wait_for_services:
@@ -181,7 +222,11 @@ class IslandBuilderNode(Node):
         for t_ns, cmd in commands:
             for e in cmd.events:
                 self._handle_event(e)
-            if cmd.mode is CommandMode.DRIVE:
+            if self.node_cfg.managed:
+                self.decision_pub.publish(mcv.decision_to_msg(t_ns, cmd.mode, cmd.events))
+            if cmd.mode is CommandMode.IDLE:  # managed: the explorer answers this scan
+                self._set_follower(False)
+            elif cmd.mode is CommandMode.DRIVE:
                 self._set_follower(False)
                 self.cmd_pub.publish(command_to_twist_stamped(cmd.v_mps, cmd.w_radps, t_ns,
                                                               self._base_frame))
@@ -197,30 +242,75 @@ class IslandBuilderNode(Node):
         if e.kind is EventKind.ISLAND_ACCEPTED and e.island is not None:
             self.get_logger().info(f"island {e.island.id} accepted ({e.island.model_type.value}, "
                                    f"measure {e.measure:.2f} > bound {e.bound:.2f})")
-            req = SetParameters.Request()
-            req.parameters = [cv.island_to_parameter(e.island)]
-            if e.edge is not None:
-                req.parameters.append(cv.edge_to_parameter(e.edge))
-            self.add_cli.call_async(req).add_done_callback(self._on_added)
         if e.kind is EventKind.ISLAND_REVISITED and e.edge is not None:
             self.get_logger().info(f"island {e.revisited_island_id} revisited: edge "
                                    f"{e.edge.source}->{e.edge.target}")
+        items = graph_items(e)  # the island, its edge, the exits the edge explored, in order
+        if items:
             req = SetParameters.Request()
-            req.parameters = [cv.edge_to_parameter(e.edge)]
+            req.parameters = [mcv.graph_item_to_parameter(item) for item in items]
             self.add_cli.call_async(req).add_done_callback(self._on_added)
         if e.kind is EventKind.HANDED_BACK and e.accepted_island_id is not None:
+            if self.node_cfg.managed:  # the explorer drives on: restart the record, stay paused
+                self.reset_cli.call_async(Trigger.Request()).add_done_callback(
+                    lambda f: self._on_reset(f, resume=False))
+                return
             # At a new or revisited island's origin: the follower's record restarts, it resumes.
-            self._enable_pending = True
-            fut = self.reset_cli.call_async(Trigger.Request())
-            fut.add_done_callback(self._on_reset)
+            self._restart_follower()
 
-    def _on_reset(self, fut: Any) -> None:
+    def _restart_follower(self) -> None:
+        """Restart the follower's record (it is paused) and resume it."""
+        self._enable_pending = True
+        self.reset_cli.call_async(Trigger.Request()).add_done_callback(self._on_reset)
+
+    # --- the explorer's requests (managed mode) -----------------------------------------------
+    def _on_explorer(self, request: SetParameters.Request,
+                     response: SetParameters.Response) -> Any:
+        """Apply the explorer's requests in order; a refused one says why (and is logged)."""
+        for k, param in enumerate(request.parameters):
+            try:
+                reason = self._apply_request(mcv.parameter_to_request(param, f"parameters[{k}]"))
+                ok = True
+            except (mcv.ExplorerMessageError, core.BuilderError) as exc:
+                ok, reason = False, str(exc)
+            if not ok:
+                self.refused_requests += 1
+                self.get_logger().warn(f"island_builder/explorer refused parameters[{k}]: "
+                                       f"{reason}", throttle_duration_sec=WARN_THROTTLE_S)
+            response.results.append(SetParametersResult(successful=ok, reason=reason))
+        return response
+
+    def _apply_request(self, r: mcv.ExplorerRequest) -> str:
+        """One request to the builder; BuilderError when it cannot take it (now)."""
+        if not isinstance(r, Abort):
+            known = {i.id: i for i in self.builder.islands}
+            if r.island_id not in known:
+                raise core.BuilderError(f"unknown island {r.island_id} (the builder has "
+                                        f"{len(known)}: {sorted(known)[:20]})")
+            if isinstance(r, Handover) and r.exit_index is not None and all(
+                    e.index != r.exit_index for e in known[r.island_id].exits):
+                raise core.BuilderError(f"island {r.island_id} has no exit {r.exit_index}")
+        if isinstance(r, Docked):
+            self.builder.on_docked(r.island_id, r.origin_odom)
+            return f"docked at island {r.island_id}"
+        if isinstance(r, Abort):
+            if not self.builder.abort():
+                raise core.BuilderError(f"abort: the builder is busy ({self.builder.state}); "
+                                        "ask again")
+            self._set_follower(False)
+            return "following stopped"
+        self.builder.handover(r.island_id, r.exit_index, r.prefix)
+        self._restart_follower()  # the edge's record starts at the handover
+        return f"handed over at island {r.island_id} by exit {r.exit_index}"
+
+    def _on_reset(self, fut: Any, resume: bool = True) -> None:
         """The follower's record restarted (it refuses while following: say so); resume it."""
         res = fut.result()
         if res is None or not res.success:
             why = res.message if res is not None else "no answer"
             self.get_logger().warn(f"{self.reset_cli.service_name} failed: {why}")
-        self._send_enable(True)
+        if resume:
+            self._send_enable(True)
 
     def _on_added(self, fut: Any) -> None:
         res = fut.result()
