@@ -12,7 +12,7 @@ from enum import StrEnum
 from typing import Any
 
 import pytest
-from island_msgs_py.ros_params import ConfigParameters, ready_line
+from island_msgs_py.ros_params import BadMessageLog, ConfigParameters, ready_line
 from rcl_interfaces.msg import ParameterType, SetParametersResult
 from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParameters
 from rclpy.executors import SingleThreadedExecutor
@@ -154,5 +154,21 @@ def test_the_ready_line_names_what_the_node_uses(ros_context: Any) -> None:
                         "/robot7/out_topic [std_msgs/String]; services /robot7/do_it "
                         "[rcl_interfaces/SetParameters]; calls /robot7/other/do_it "
                         "[rcl_interfaces/SetParameters]; system time")
+    finally:
+        node.destroy_node()
+
+
+def test_a_bad_message_warning_names_the_topic_in_the_robots_namespace(ros_context: Any) -> None:
+    node = Node("warn_probe", namespace="/robot3", context=ros_context,
+                cli_args=["--ros-args", "-r", "cmd_vel:=drive"])
+    try:
+        warn = BadMessageLog(node)
+        assert warn.resolved("odom") == "/robot3/odom"
+        assert warn.resolved("cmd_vel") == "/robot3/drive"  # remappings apply too
+        assert warn.resolved("/clock") == "/clock"
+        assert warn.resolved("scan of 3 ranges") == "scan of 3 ranges"  # a description
+        warn("odom", ValueError("range NaN"))
+        warn("odom", ValueError("range NaN"))
+        assert warn.count == 2
     finally:
         node.destroy_node()

@@ -68,14 +68,25 @@ class BadMessageLog:
     bad message. Call it with what was bad (a topic) and the error that says why."""
 
     def __init__(self, node: Node, throttle_s: float = BAD_MESSAGE_THROTTLE_S) -> None:
+        self._node = node
         self._logger = node.get_logger()
         self._throttle_s = throttle_s
         self.count = 0
 
     def __call__(self, what: str, exc: Exception) -> None:
         self.count += 1
-        self._logger.warn(f"ignored bad {what} ({self.count} so far): {exc}",
+        self._logger.warn(f"ignored bad {self.resolved(what)} ({self.count} so far): {exc}",
                           throttle_duration_sec=self._throttle_s)
+
+    def resolved(self, what: str) -> str:
+        """A topic name as the node resolves it (its namespace and remappings applied: a robot's
+        warning names its own topic); any other description as it is."""
+        if not what or any(c.isspace() for c in what):
+            return what
+        try:
+            return str(self._node.resolve_topic_name(what))
+        except Exception:  # not a valid topic name: a description after all
+            return what
 
 
 def clock_ns(node: Node) -> int:

@@ -187,19 +187,19 @@ class IslandBuilderNode(Node):
     def _on_odom(self, msg: Odometry) -> None:
         try:
             pose, cov, t_ns = odometry_to_pose(msg)
-            check_stamp(t_ns, clock_ns(self), "/odom")
+            check_stamp(t_ns, clock_ns(self), "odom")
             released = self.pairer.odometry(t_ns, pose, checked_cov(t_ns * 1e-9, cov))
             self._act(feed(self.builder, released))
         except (ConversionError, ValueError) as exc:
-            self._warn("/odom", exc)
+            self._warn("odom", exc)
 
     def _on_truth(self, msg: Odometry) -> None:
         try:
             pose, _, t_ns = odometry_to_pose(msg)
-            check_stamp(t_ns, clock_ns(self), "/ground_truth")
+            check_stamp(t_ns, clock_ns(self), "ground_truth")
             self._act(feed(self.builder, self.pairer.stream(GROUND_TRUTH, t_ns, pose)))
         except (ConversionError, ValueError) as exc:
-            self._warn("/ground_truth", exc)
+            self._warn("ground_truth", exc)
 
     def _on_strategy(self, msg: String) -> None:
         try:
@@ -211,11 +211,11 @@ class IslandBuilderNode(Node):
         try:
             ranges, angles = scan_to_arrays(msg)
             t_ns = time_to_ns(msg.header.stamp)
-            check_stamp(t_ns, clock_ns(self), "/sonar/scan")
+            check_stamp(t_ns, clock_ns(self), "sonar/scan")
             scan = checked_scan(t_ns * 1e-9, ranges, angles)
             self._act(feed(self.builder, self.pairer.scan(t_ns, scan)))
         except (ConversionError, ValueError) as exc:
-            self._warn("/sonar/scan", exc)
+            self._warn("sonar/scan", exc)
 
     # --- one decision per scan ----------------------------------------------------------------
     def _act(self, commands: list[tuple[int, core.BuilderCommand]]) -> None:
@@ -316,7 +316,8 @@ class IslandBuilderNode(Node):
         res = fut.result()
         for r in res.results if res is not None else []:
             if not r.successful:
-                self.get_logger().warn(f"/topo_graph/add rejected an item: {r.reason}")
+                name = self.resolve_service_name("topo_graph/add")
+                self.get_logger().warn(f"{name} rejected an item: {r.reason}")
 
     def _set_follower(self, enabled: bool) -> None:
         if self._enable_pending == enabled or (

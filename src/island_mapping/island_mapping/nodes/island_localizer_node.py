@@ -58,7 +58,7 @@ class IslandLocalizerNode(Node):
 
     def _on_event(self, msg: String) -> None:
         try:
-            d = load_json(msg.data, "/island_builder/events", max_bytes=MAX_EVENT_JSON_BYTES)
+            d = load_json(msg.data, "island_builder/events", max_bytes=MAX_EVENT_JSON_BYTES)
             if not isinstance(d, dict) or d.get("kind") != "island_accepted":
                 return
             island = json_io.island_from_dict(d.get("island"), "event.island")
@@ -73,7 +73,7 @@ class IslandLocalizerNode(Node):
             try:
                 fix = self.tracker.on_scan(p.pose, p.payload[0], p.payload[1])
             except ValueError as exc:
-                self._warn("scan for the localizer", exc)
+                self._warn("sonar/scan", exc)
                 continue
             if fix is not None:
                 self.published += 1

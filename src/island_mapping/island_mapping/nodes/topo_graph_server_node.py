@@ -116,12 +116,17 @@ class TopoGraphServerNode(Node):
                     else self.graph.put_edge(item))
         return f"{'replaced' if replaced else 'added'} edge {item.source}->{item.target}"
 
+    @property
+    def _add_name(self) -> str:
+        """The add service's name as resolved in this node's namespace (for the log)."""
+        return str(self.resolve_service_name("topo_graph/add"))
+
     def _on_add(self, request: SetParameters.Request, response: SetParameters.Response) -> Any:
         limit = self.config.max_items_per_request
         if len(request.parameters) > limit:
             reason = (f"request refused: {len(request.parameters)} items, the limit is {limit} "
                       "per request (max_items_per_request); send them in several requests")
-            self._reject(f"/topo_graph/add {reason}")
+            self._reject(f"{self._add_name} {reason}")
             response.results = [SetParametersResult(successful=False, reason=reason)
                                 for _ in request.parameters]
             return response
@@ -133,10 +138,10 @@ class TopoGraphServerNode(Node):
                 changed = True
                 response.results.append(SetParametersResult(successful=True, reason=reason))
             except (GraphFormatError, GraphError, IslandTypeError) as exc:
-                self._reject(f"/topo_graph/add rejected parameters[{k}]: {exc}")
+                self._reject(f"{self._add_name} rejected parameters[{k}]: {exc}")
                 response.results.append(SetParametersResult(successful=False, reason=str(exc)))
             except Exception as exc:  # e.g. disk full: never die, never acknowledge
-                self._reject(f"/topo_graph/add failed on parameters[{k}]: {exc!r}")
+                self._reject(f"{self._add_name} failed on parameters[{k}]: {exc!r}")
                 response.results.append(
                     SetParametersResult(successful=False, reason=f"internal error: {exc!r}"))
         if changed:
@@ -180,7 +185,8 @@ class TopoGraphServerNode(Node):
             self.get_logger().error(str(exc), throttle_duration_sec=WARN_THROTTLE_S)
         except Exception as exc:
             self.rejected += 1
-            self.get_logger().error(f"/topo_graph/plan failed: {exc!r}")
+            name = self.resolve_service_name("topo_graph/plan")
+            self.get_logger().error(f"{name} failed: {exc!r}")
         return response
 
     def output_dir(self) -> Path:

@@ -122,7 +122,7 @@ class HallFollowerNode(Node):
         try:
             v, w = self.follower.update(ranges, angles, pose, t_ns * 1e-9)
         except HallFollowerError as exc:
-            self._warn("scan for the follower", exc)
+            self._warn("sonar/scan", exc)
             return
         self.scans_processed += 1
         if self.follower.enabled:

@@ -169,9 +169,9 @@ class OdometryNode(Node):
     def _on_cmd(self, msg: TwistStamped) -> None:
         try:
             v, w, stamp_ns = twist_stamped_to_command(msg)
-            check_stamp(stamp_ns, self.sim_time_ns, "/cmd_vel")
+            check_stamp(stamp_ns, self.sim_time_ns, "cmd_vel")
         except ConversionError as exc:
-            self._warn("/cmd_vel", exc)
+            self._warn("cmd_vel", exc)
             return
         if self.gate.offer(v, w, stamp_ns, self.sim_time_ns):  # the awaited answer came
             if self.cfg.sim.real_time_factor > 0:

@@ -105,9 +105,9 @@ class SonarNode(Node):
     def _on_truth(self, msg: Odometry) -> None:
         try:
             pose, _, t_ns = odometry_to_pose(msg)
-            check_stamp(t_ns, clock_ns(self), "/ground_truth")
+            check_stamp(t_ns, clock_ns(self), "ground_truth")
         except ConversionError as exc:
-            self._warn("/ground_truth", exc)
+            self._warn("ground_truth", exc)
             return
         period = t_ns // self.period_ns
         if self._last_period is not None and period <= self._last_period:
