@@ -238,6 +238,8 @@ def test_a_revisit_docks_only_through_an_exit_facing_the_arrival(came_deg: float
     facing = came_deg != -90.0
     assert gate(rec, snap, _t_island(1, T_EXITS), True) is facing
     assert gate(rec, snap, _t_island(1), True)  # no exits known: no evidence against
+    unknown = Recognition(1, rec.pose, 0.05, 0.9, mahalanobis2=2.0)
+    assert not gate(unknown, snap, _t_island(1, T_EXITS), True)  # no arrival: no evidence for
     unlikely = Recognition(1, rec.pose, 0.05, 0.9, mahalanobis2=30.0, arrival_rad=math.pi)
     assert not gate(unlikely, snap, _t_island(1, T_EXITS), True)  # outside the uncertainty
 

@@ -9,8 +9,9 @@ it when (1) the robot is at its place (within revisit_near_m of its origin), (2)
 recognised pose is within the uncertainty of the propagated estimate (squared Mahalanobis
 distance), and (3) the island has an exit facing the direction the robot came from, whatever
 its state (explored by an edge from elsewhere too: a closure missed earlier leaves two islands
-at one place, and the robot may come from the other). An island without exits, or an arrival
-of unknown direction, gives no topological evidence against it.
+at one place, and the robot may come from the other). An arrival of unknown direction at an
+island with exits is refused (no evidence for it: a star's corridor points fitted a junction's
+model 6 m along its corridor once); an island without exits gives no evidence either way.
 """
 
 from __future__ import annotations
@@ -30,8 +31,10 @@ from island_mapping.core.graph import TopoGraph
 def arrival_agrees(island: Island, arrival_rad: float | None, within_deg: float) -> bool:
     """Topological evidence (module docstring, (3)): may a robot that came from `arrival_rad`
     (island frame [rad]) arrive at `island`? An exit must face it within `within_deg` [deg]."""
-    if arrival_rad is None or not island.exits:
+    if not island.exits:
         return True
+    if arrival_rad is None:
+        return False  # nothing to check it by: a missed closure is cheaper than a false one
     return facing_exit(island, arrival_rad, within_deg) is not None
 
 
