@@ -196,8 +196,12 @@ def _robot_points(walls: np.ndarray, robot: Pose2D, rng: np.random.Generator,
     return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
 
 
-def _t_island(iid: int) -> Island:
-    return Island(iid, LineModel(T_WALLS), ModelType.LINE, 1.0, 0.0)
+T_EXITS = (Exit(0, math.pi, 2.0), Exit(1, 0.0, 2.0), Exit(2, math.pi / 2, 2.0))
+"""The T's openings, in its frame: west (where the robot came from), east, north."""
+
+
+def _t_island(iid: int, exits: tuple[Exit, ...] = ()) -> Island:
+    return Island(iid, LineModel(T_WALLS), ModelType.LINE, 1.0, 0.0, exits=exits)
 
 
 @pytest.mark.parametrize("right", [0, 1])
@@ -221,6 +225,49 @@ def test_a_revisit_docks_onto_the_right_island(right: int) -> None:
     assert not gate(far, snap, _t_island(right), False)  # seen from the next place: no dock
 
 
+@pytest.mark.parametrize("came_deg", [180.0, 95.0, -90.0])
+def test_a_revisit_docks_only_through_an_exit_facing_the_arrival(came_deg: float) -> None:
+    """The topological evidence: the robot may have come to a T from its west, east or north
+    opening, never through its south wall; and the recognised pose must lie within the
+    uncertainty of where odometry put the island."""
+    gate = explorer_hooks(ExplorerConfig(), TopoGraph).accept_revisit
+    assert gate is not None
+    snap = PoseSnapshot(Pose2D(0.0, 0.0, 0.0), np.eye(3), 0.3, 0.02, 0, 50.0)
+    rec = Recognition(1, Pose2D(0.4, 0.2, 0.05), 0.05, 0.9, mahalanobis2=2.0,
+                      arrival_rad=math.radians(came_deg))
+    facing = came_deg != -90.0
+    assert gate(rec, snap, _t_island(1, T_EXITS), True) is facing
+    assert gate(rec, snap, _t_island(1), True)  # no exits known: no evidence against
+    unknown = Recognition(1, rec.pose, 0.05, 0.9, mahalanobis2=2.0)
+    assert not gate(unknown, snap, _t_island(1, T_EXITS), True)  # no arrival: no evidence for
+    unlikely = Recognition(1, rec.pose, 0.05, 0.9, mahalanobis2=30.0, arrival_rad=math.pi)
+    assert not gate(unlikely, snap, _t_island(1, T_EXITS), True)  # outside the uncertainty
+
+
+def test_the_explorers_search_reaches_a_drifted_island_and_docks_onto_it() -> None:
+    """Odometry drifted by 3 m and 8 deg around a 60 m loop: the plain search refuses the
+    window as too large, the explorer's (within its caps, one island fitting) finds the
+    island at the robot's true pose in its frame."""
+    robot_in_island = Pose2D(0.4, 0.2, 0.05)
+    believed = Pose2D(3.0, -2.0, math.radians(8.0))  # the island's origin by odometry
+    at = believed.compose(robot_in_island)
+    pts = _robot_points(T_WALLS, robot_in_island, np.random.default_rng(7))
+    snap = PoseSnapshot(at, np.diag([9.0, 9.0, 0.02]), 3.0, 0.14, 1, 60.0)
+    islands = [_t_island(0), Island(1, LineModel(END_WALLS), ModelType.LINE, 1.0, 0.0)]
+    far_end = Pose2D(40.0, 0.0, 0.0)
+    for cfg in (BuilderConfig(), BuilderConfig(revisit=ExplorerConfig().revisit)):
+        rec = Recognizer(cfg)
+        rec.remember(0, Pose2D(0.0, 0.0, 0.0), np.zeros((3, 3)))
+        rec.remember(1, far_end, np.zeros((3, 3)))
+        found = rec.recognize(pts, at, snap, islands, star=True)
+        if not cfg.revisit.clip_search:
+            assert found is None and rec.diagnostics.revisit_refusals["drift_too_large"] >= 1
+            continue
+        assert found is not None and found.island_id == 0
+        assert math.hypot(found.pose.x - 0.4, found.pose.y - 0.2) < 0.15
+        assert found.mahalanobis2 is not None and found.mahalanobis2 < 11.34
+
+
 def test_an_ambiguous_revisit_does_not_dock_without_more_evidence() -> None:
     """Two identical T junctions 4 m apart, both within the search window of a drifted
     odometry: the points fit both, so neither is recognised (a look-alike refusal)."""
@@ -232,3 +279,24 @@ def test_an_ambiguous_revisit_does_not_dock_without_more_evidence() -> None:
     pts = _robot_points(T_WALLS, robot_in_island, np.random.default_rng(6))
     assert rec.recognize(pts, robot_in_island, snap, [_t_island(0), _t_island(1)]) is None
     assert rec.diagnostics.revisit_refusals.get("look_alike", 0) >= 1
+
+
+def test_the_explorers_search_refuses_two_identical_junctions_within_the_window() -> None:
+    """The explorer's search (clipped windows) with two identical T junctions 8 m apart, both
+    within the drifted odometry's window: the star's points fit both, so the robot does not
+    dock (a missed closure, never a false one); with one of them it docks."""
+    robot_in_island = Pose2D(0.4, 0.2, 0.05)
+    snap = PoseSnapshot(robot_in_island, np.diag([16.0, 16.0, 0.01]), 0.3, 0.1, None, 50.0)
+    pts = _robot_points(T_WALLS, robot_in_island, np.random.default_rng(8))
+    for twins in (True, False):
+        rec = Recognizer(BuilderConfig(revisit=ExplorerConfig().revisit))
+        rec.remember(0, Pose2D(0.0, 0.0, 0.0), np.zeros((3, 3)))
+        islands = [_t_island(0)]
+        if twins:
+            rec.remember(1, Pose2D(8.0, 0.0, 0.0), np.zeros((3, 3)))
+            islands.append(_t_island(1))
+        found = rec.recognize(pts, robot_in_island, snap, islands, star=True)
+        if twins:
+            assert found is None and rec.diagnostics.revisit_refusals["look_alike"] >= 1
+        else:
+            assert found is not None and found.island_id == 0

@@ -68,6 +68,7 @@ def test_coverage_and_islands_per_place_on_a_t_junction() -> None:
     assert ev.islands_per_place == pytest.approx(1.5)  # two islands at the west end
     d = ev.to_dict()
     assert d["islands_off_places"] == 1 and d["covered_junctions"] == 1
+    assert d["missed_closures"] == 1  # the west end's second island: a loop not closed
     assert [p["covered"] for p in d["place_list"]].count(True) == 2
 
 

@@ -34,8 +34,9 @@ SENSOR_RATE_HZ = 10.0
 
 HEADLINE = ("places", "covered_places", "coverage", "junctions", "covered_junctions",
             "junction_coverage", "islands", "islands_per_place", "islands_off_places",
-            "false_merges", "revisits", "map_cycle_rank", "world_cycle_rank", "routes",
-            "route_success_rate", "route_length_ratio_mean", "route_length_ratio_max")
+            "false_merges", "missed_closures", "revisits", "map_cycle_rank",
+            "world_cycle_rank", "routes", "route_success_rate", "route_length_ratio_mean",
+            "route_length_ratio_max")
 """The world-evaluation figures a measurement reports."""
 
 

@@ -8,6 +8,7 @@ robot's true pose at each, and the island pairs whose routes were followed. Figu
   no wall between them; overall and over junctions;
 - **islands per place**: each island belongs to its nearest such place (if any); islands at
   places / covered places (1.0: no place has a duplicate); islands at no place are counted;
+  each duplicate is a **missed loop closure** (`missed_closures`);
 - **false merges**: an island recognised from where it is not. A revisit event says where the
   robot was in the island's frame (`island_pose`); composed with the robot's true pose it says
   where the island's origin truly was *according to that recognition*. More than 3 m from the
@@ -145,6 +146,13 @@ class MapEvaluation:
         return self.islands_at_places / len(used) if used else math.nan
 
     @property
+    def missed_closures(self) -> int:
+        """Islands built at a place that already had one (the robot did not recognise it):
+        islands at places minus places with an island."""
+        used = {p for p in self.island_place.values() if p is not None}
+        return self.islands_at_places - len(used)
+
+    @property
     def route_success_rate(self) -> float:
         done = [r.success for r in self.routes if r.success is not None]
         return sum(done) / len(done) if done else math.nan
@@ -183,6 +191,7 @@ class MapEvaluation:
             "islands_per_place": num(self.islands_per_place),
             "revisits": self.revisits,
             "false_merges": len(self.false_merges),
+            "missed_closures": self.missed_closures,
             "false_merge_events": [asdict(f) for f in self.false_merges],
             "map_cycle_rank": self.map_cycle_rank,
             "world_cycle_rank": self.world_cycle_rank,

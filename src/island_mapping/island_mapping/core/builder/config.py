@@ -279,6 +279,23 @@ class RevisitConfig:
             "re-dock if off) [-]"
         },
     )
+    unique_island: bool = field(
+        default=False,
+        metadata={"help": "refuse a recognition when the points fit more than one known island "
+                          "(each within its own window) [bool]"},
+    )
+    ambiguity_inlier_margin: float = field(
+        default=1.0,
+        metadata={"help": "a second fit (elsewhere in one island, or of another island with "
+                          "unique_island) makes a recognition ambiguous only when its inlier "
+                          "fraction is within this of the best fit's (1: any fit does) [-]"},
+    )
+    clip_search: bool = field(
+        default=False,
+        metadata={"help": "a candidate whose window would exceed the search caps is searched "
+                          "within the caps instead of refused (needs unique_island and a "
+                          "revisit gate with topological evidence) [bool]"},
+    )
 
     def __post_init__(self) -> None:
         _check("RevisitConfig", self, (
@@ -290,7 +307,7 @@ class RevisitConfig:
         ), strict=True)
         _check("RevisitConfig", self, (
             "search_max_deg", "path_clearance_m", "min_inlier_fraction", "min_loop_m",
-            "min_constraint", "rival_sigmas",
+            "min_constraint", "rival_sigmas", "ambiguity_inlier_margin",
         ), strict=False)
         for name in ("refine_guesses", "min_points", "max_points", "star_search_cells",
                      "star_max_points"):

@@ -14,11 +14,14 @@
 - **Exits** (`BuilderHooks.find_exits`): called at acceptance with what the star saw, in the
   island frame; the exit facing where the robot came from is the arrival.
 - **Revisit gate** (`BuilderHooks.accept_revisit`): a recognition the Recognizer proposed is
-  kept only if the gate agrees (loop closure with topological evidence).
+  kept only if the gate agrees (loop closure with topological evidence); the recognition it
+  sees carries the direction the robot came from in the island frame (`arrival_rad`).
+  `BuilderHooks.revisit` replaces the builder's revisit search settings (`hooked_config`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Callable
@@ -39,6 +42,7 @@ from island_msgs_py.types import (
     wrap_angle,
 )
 
+from island_mapping.core.builder.config import BuilderConfig, RevisitConfig
 from island_mapping.core.builder.events import BuilderEvent, EventKind
 from island_mapping.core.builder.geometry import concat
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition
@@ -66,6 +70,14 @@ class BuilderHooks:
     find_exits: ExitFinder | None = None
     accept_revisit: RevisitGate | None = None
     arrival_match_deg: float = 45.0
+    revisit: RevisitConfig | None = None  # the recognition the explorer wants (None: the builder's)
+
+
+def hooked_config(config: BuilderConfig | None, hooks: BuilderHooks) -> BuilderConfig:
+    """The builder's configuration under `hooks`: its revisit settings replaced by the
+    hooks' when they bring their own."""
+    cfg = config if config is not None else BuilderConfig()
+    return cfg if hooks.revisit is None else dataclasses.replace(cfg, revisit=hooks.revisit)
 
 
 @dataclass(frozen=True)

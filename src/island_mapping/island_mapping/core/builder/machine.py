@@ -12,6 +12,7 @@ and the events since the last call. docs/builder.md describes the decisions.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from enum import StrEnum
 
@@ -65,6 +66,7 @@ from island_mapping.core.builder.hooks import (
     exit_evidence,
     exit_updates,
     facing_exit,
+    hooked_config,
     with_exits,
 )
 from island_mapping.core.builder.inputs import checked_cov, checked_scan
@@ -99,8 +101,8 @@ class IslandBuilder:
         self, config: BuilderConfig | None = None, fit: FitFn | None = None,
         evaluate: EvaluateFn | None = None, hooks: BuilderHooks | None = None,
     ) -> None:
-        self.config = config if config is not None else BuilderConfig()
         self.hooks = hooks if hooks is not None else BuilderHooks()
+        self.config = hooked_config(config, self.hooks)
         self._departure: Departure | None = None
         self.measures = Measures.of(self.config, fit, evaluate)
         self.diagnostics = Diagnostics()
@@ -381,12 +383,12 @@ class IslandBuilder:
         if not att.first:
             rec = None if self._odom is None else self.recognizer.recognize_star(
                 att.near_points, att.anchor, self._odom, self.snapshot(), self.islands)
+            end = None if rec is None or self._odom is None else rec.pose.compose(
+                self._odom.relative_to(att.anchor).inverse())  # the anchor in the island frame
             # the star is at a known island: a revisit, not a new one
-            if rec is not None and self._gate_allows(rec, star=True):
-                assert self._odom is not None
+            if rec is not None and self._gate_allows(rec, star=True, end=end):
                 att.outcome = EventKind.ISLAND_REVISITED
                 self._attempt, self._track.star = None, None
-                end = rec.pose.compose(self._odom.relative_to(att.anchor).inverse())
                 self._revisit(rec, legs_m=tuple(att.legs_done), strategy_end=end)
                 return
         pts = concat(att.points)
@@ -507,10 +509,14 @@ class IslandBuilder:
         self._revisit(rec)
         return True
 
-    def _gate_allows(self, rec: Recognition, star: bool) -> bool:
-        """The explorer's revisit gate (topological evidence) agrees, or there is none."""
+    def _gate_allows(self, rec: Recognition, star: bool, end: Pose2D | None = None) -> bool:
+        """The explorer's revisit gate (topological evidence) agrees, or there is none; it sees
+        where the robot came from (the record ended at `end`, default rec.pose)."""
         gate = self.hooks.accept_revisit
-        if gate is None or gate(rec, self.snapshot(), self.ledger.island(rec.island_id), star):
+        came = None if gate is None else arrival_heading(
+            approach_path(self._strategy, APPROACH_M), rec.pose if end is None else end)
+        if gate is None or gate(dataclasses.replace(rec, arrival_rad=came), self.snapshot(),
+                                self.ledger.island(rec.island_id), star):
             return True
         self.diagnostics.refuse(Refusal.TOPOLOGY)
         return False
@@ -533,8 +539,7 @@ class IslandBuilder:
             self.config.revisit.strategy_min_go_m, origin_odom, self._track.rel.heading_sigma_rad)
         came = arrival_heading(approach_path(self._strategy, APPROACH_M),
                                rec.pose if strategy_end is None else strategy_end)
-        arrival = None if came is None else facing_exit(island, came,
-                                                        self.hooks.arrival_match_deg)
+        arrival = None if came is None else facing_exit(island, came, self.hooks.arrival_match_deg)
         index = None if arrival is None else arrival.index
         annotated = with_exits(edge, self._departure, index)
         if annotated is not None:

@@ -45,6 +45,12 @@ class Recognition:
     pose: Pose2D  # the robot in the island frame [m, rad]
     residual_m: float
     inlier_fraction: float
+    # How far the recognised pose lies from the odometric estimate, in its sigmas: the squared
+    # Mahalanobis distance over (x, y, theta) [-]; None when not computed.
+    mahalanobis2: float | None = None
+    # The direction the robot came from, in the island frame (set by the builder before its
+    # revisit gate; None: unknown) [rad].
+    arrival_rad: float | None = None
 
 
 @dataclass(frozen=True)
@@ -204,27 +210,29 @@ class Recognizer:
         a grid of at least radius / star_search_cells, residual up to star_max_residual_m.
         """
         rc = self.config.revisit
-        best: Recognition | None = None
+        found: list[Recognition] = []
         candidates = list(self._candidates(snap, islands))
         for cand in candidates:
             est = at.relative_to(cand.origin)  # the robot in the island frame, by odometry
-            win = self._window(cand, star)
+            win, too_wide = self._window(cand, star)
             if math.hypot(est.x, est.y) > win.radius_m + rc.max_dock_m:
                 continue
-            max_m, max_deg = (
-                (rc.star_search_max_m, rc.star_search_max_deg)
-                if star
-                else (rc.search_max_m, rc.search_max_deg)
-            )
-            if win.radius_m > max_m or win.max_dth_rad > math.radians(max_deg):
+            if too_wide:
                 # The search could not cover where the island may be: a match inside it
                 # could be a look-alike place.
                 self.diagnostics.refuse(Refusal.DRIFT_TOO_LARGE)
                 continue
-            found = self._search(cand.island, points, est, win)
-            if found is not None and (best is None or found.residual_m < best.residual_m):
-                best = found
-        if best is not None and self._rival_fits(candidates, points, at, best.island_id, star):
+            fit = self._search(cand.island, points, est, win)
+            if fit is not None:
+                found.append(_with_distance(fit, est, cand))
+        if not found:
+            return None
+        best = min(found, key=lambda f: f.residual_m)
+        rivals = [f for f in found if f.island_id != best.island_id
+                  and f.inlier_fraction >= best.inlier_fraction - rc.ambiguity_inlier_margin]
+        if (rc.unique_island and rivals) or self._rival_fits(
+            candidates, points, at, best.island_id, star
+        ):
             self.diagnostics.refuse(Refusal.LOOK_ALIKE)
             return None
         return best
@@ -271,13 +279,21 @@ class Recognizer:
             origin, sig_m, sig_th = min(self.estimates(iid, snap), key=lambda e: e[1])
             yield _Candidate(island, origin, sig_m, sig_th)
 
-    def _window(self, cand: _Candidate, star: bool) -> _Window:
+    def _window(self, cand: _Candidate, star: bool) -> tuple[_Window, bool]:
+        """The search window around a candidate's estimate, and whether it exceeds the caps
+        (search_max_m / _deg, or the star's): with clip_search it is cut to them instead."""
         rc = self.config.revisit
         sigmas = rc.star_search_sigmas if star else rc.search_sigmas
         radius = max(sigmas * cand.sigma_m, rc.search_min_m)
+        dth = sigmas * cand.sigma_rad
+        max_m, max_deg = ((rc.star_search_max_m, rc.star_search_max_deg) if star
+                          else (rc.search_max_m, rc.search_max_deg))
+        too_wide = radius > max_m or dth > math.radians(max_deg)
+        if too_wide and rc.clip_search:
+            radius, dth, too_wide = min(radius, max_m), min(dth, math.radians(max_deg)), False
         step = max(rc.search_step_m, radius / rc.star_search_cells) if star else rc.search_step_m
         max_res = rc.star_max_residual_m if star else rc.max_residual_m
-        return _Window(radius, sigmas * cand.sigma_rad, step, max_res)
+        return _Window(radius, dth, step, max_res), too_wide
 
     def _rival_fits(
         self, candidates: list[_Candidate], pts: FloatArray, at: Pose2D, chosen: int, star: bool,
@@ -322,7 +338,9 @@ class Recognizer:
             return None
         best = min(fits, key=lambda f: f.residual_m)
         p = best.pose
-        if any(math.hypot(f.pose.x - p.x, f.pose.y - p.y) > rc.ambiguity_m for f in fits):
+        if any(math.hypot(f.pose.x - p.x, f.pose.y - p.y) > rc.ambiguity_m
+               and f.inlier_fraction >= best.inlier_fraction - rc.ambiguity_inlier_margin
+               for f in fits):
             refuse(Refusal.AMBIGUOUS)
             return None
         if math.hypot(p.x, p.y) > rc.max_dock_m:
@@ -406,3 +424,11 @@ class Recognizer:
                 continue
             fits.append(Recognition(island.id, p, float(res.residual_m), inl))
         return fits
+
+
+def _with_distance(fit: Recognition, est: Pose2D, cand: _Candidate) -> Recognition:
+    """`fit` with its squared Mahalanobis distance from the odometric estimate `est` (the
+    candidate's position and heading sigmas, isotropic in position)."""
+    d2 = ((fit.pose.x - est.x) ** 2 + (fit.pose.y - est.y) ** 2) / max(cand.sigma_m, 1e-6) ** 2
+    d2 += (wrap_angle(fit.pose.theta - est.theta) / max(cand.sigma_rad, 1e-6)) ** 2
+    return Recognition(fit.island_id, fit.pose, fit.residual_m, fit.inlier_fraction, d2)

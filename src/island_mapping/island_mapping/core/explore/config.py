@@ -8,6 +8,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields
 
+from island_mapping.core.builder import RevisitConfig
+
 
 class ExploreError(ValueError):
     """Bad input to exploration (the message names what was wrong)."""
@@ -142,13 +144,28 @@ class ExplorerConfig:
                           "close to its origin (at its place, not seeing it from the next "
                           "one) [m]"},
     )
+    revisit_max_mahalanobis2: float = field(
+        default=11.34,
+        metadata={"help": "a recognised island is docked onto only when the recognised pose "
+                          "lies within this squared Mahalanobis distance of where odometry "
+                          "propagated from the last island puts it (11.34: 99 % of 3 degrees "
+                          "of freedom) [-]"},
+    )
     exit: ExitConfig = field(
         default_factory=ExitConfig, metadata={"help": "how exits are found at an island"}
+    )
+    revisit: RevisitConfig = field(
+        default_factory=lambda: RevisitConfig(
+            unique_island=True, clip_search=True, star_search_max_m=10.0,
+            star_search_cells=14, ambiguity_inlier_margin=0.15),
+        metadata={"help": "the builder's revisit search while exploring by exits: the star "
+                          "searches every island odometry allows (within its caps) and a "
+                          "recognition must fit one island only; the gate adds the topology"},
     )
 
     def __post_init__(self) -> None:
         _check_numbers(self, ("exit_cap_s", "door_max_width_m", "door_through_m", "map_wait_s",
-                              "look_buffer_s", "revisit_near_m"),
+                              "look_buffer_s", "revisit_near_m", "revisit_max_mahalanobis2"),
                        ("depart_min_free_m", "lane_snap_m"))
         if isinstance(self.retries_per_exit, bool) or not isinstance(self.retries_per_exit, int) \
                 or self.retries_per_exit < 0:

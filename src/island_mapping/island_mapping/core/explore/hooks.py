@@ -1,5 +1,18 @@
 """The builder hooks an explorer installs (`core.builder.hooks.BuilderHooks`): managed mode,
-exits found from the star's evidence, and the loop-closure gate on recognitions."""
+exits found from the star's evidence, the revisit search it wants, and the loop-closure gate
+on recognitions.
+
+Loop closure with topological evidence: the Recognizer proposes an island whose origin,
+propagated from the last island along odometry (and the links measured on edges) with its
+uncertainty, could be here, and whose model fits the points at one island only. The gate keeps
+it when (1) the robot is at its place (within revisit_near_m of its origin), (2) the
+recognised pose is within the uncertainty of the propagated estimate (squared Mahalanobis
+distance), and (3) the island has an exit facing the direction the robot came from, whatever
+its state (explored by an edge from elsewhere too: a closure missed earlier leaves two islands
+at one place, and the robot may come from the other). An arrival of unknown direction at an
+island with exits is refused (no evidence for it: a star's corridor points fitted a junction's
+model 6 m along its corridor once); an island without exits gives no evidence either way.
+"""
 
 from __future__ import annotations
 
@@ -8,26 +21,41 @@ from collections.abc import Callable
 
 from island_msgs_py.types import Exit, FloatArray, Island
 
-from island_mapping.core.builder.hooks import BuilderHooks
+from island_mapping.core.builder.hooks import BuilderHooks, facing_exit
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition
 from island_mapping.core.explore.config import ExplorerConfig
 from island_mapping.core.explore.exits import ExitEvidence, find_exits
 from island_mapping.core.graph import TopoGraph
 
 
+def arrival_agrees(island: Island, arrival_rad: float | None, within_deg: float) -> bool:
+    """Topological evidence (module docstring, (3)): may a robot that came from `arrival_rad`
+    (island frame [rad]) arrive at `island`? An exit must face it within `within_deg` [deg]."""
+    if not island.exits:
+        return True
+    if arrival_rad is None:
+        return False  # nothing to check it by: a missed closure is cheaper than a false one
+    return facing_exit(island, arrival_rad, within_deg) is not None
+
+
 def explorer_hooks(cfg: ExplorerConfig, graph: Callable[[], TopoGraph]) -> BuilderHooks:
-    """Managed mode with `find_exits` (cfg.exit) and a revisit gate: a recognised island is
-    docked onto only from its place (within revisit_near_m of its origin); `graph` returns
-    the latest map."""
+    """Managed mode with `find_exits` (cfg.exit), cfg.revisit's search and the loop-closure
+    gate (module docstring); `graph` returns the latest map (the exits' states)."""
 
     def exits(segments: FloatArray, points: FloatArray, driven: FloatArray,
               arrival_rad: float | None) -> tuple[Exit, ...]:
         return find_exits(ExitEvidence(segments, points, driven, arrival_rad), cfg.exit)
 
-    def near(rec: Recognition, snap: PoseSnapshot, island: Island, star: bool) -> bool:
-        del snap, island, star
-        return math.hypot(rec.pose.x, rec.pose.y) <= cfg.revisit_near_m
+    def gate(rec: Recognition, snap: PoseSnapshot, island: Island, star: bool) -> bool:
+        del star
+        if math.hypot(rec.pose.x, rec.pose.y) > cfg.revisit_near_m:
+            return False  # seen from the next place, not at its own
+        if rec.mahalanobis2 is not None and rec.mahalanobis2 > cfg.revisit_max_mahalanobis2:
+            return False
+        g = graph()
+        known = g.get_island(island.id) if island.id in g else island
+        del snap
+        return arrival_agrees(known, rec.arrival_rad, cfg.exit.arrival_match_deg)
 
-    del graph
-    return BuilderHooks(managed=True, find_exits=exits, accept_revisit=near,
-                        arrival_match_deg=cfg.exit.arrival_match_deg)
+    return BuilderHooks(managed=True, find_exits=exits, accept_revisit=gate,
+                        arrival_match_deg=cfg.exit.arrival_match_deg, revisit=cfg.revisit)

@@ -324,7 +324,7 @@ class Explorer:
         except RouteTimeoutError:
             d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
             try:
-                yield from go_to(d, here.origin_odom)
+                yield from self._go_clear(here.origin_odom)
             except RouteTimeoutError:
                 pass
             self._since_dock = MotionRecord(self._sense.odom)
@@ -338,16 +338,31 @@ class Explorer:
         plan = plan_departure(island.model, _exit(island, exit_index),
                               to_frame(seen, here.origin_odom), self.cfg)
         for p in plan.waypoints:
-            yield from go_to(d, here.origin_odom.compose(p))
+            yield from self._go_clear(here.origin_odom.compose(p))
         yield from rotate_to(d, wrap_angle(here.origin_odom.theta + plan.heading_rad))
         if perceive(self._sense.ranges_m, self._sense.angles_rad,
                     self.perception).front_m < self.cfg.depart_min_free_m:
-            yield from go_to(d, here.origin_odom)
+            yield from self._go_clear(here.origin_odom)
             self._since_dock = MotionRecord(self._sense.odom)
             return False
         if plan.through is not None:
-            yield from go_to(d, here.origin_odom.compose(plan.through))
+            yield from self._go_clear(here.origin_odom.compose(plan.through))
         return True
+
+    def _go_clear(self, target_odom: Pose2D) -> Generator[Step, None, None]:
+        """`go_to` the odometric pose, stopping short where the sonar shows a wall closer
+        ahead than the route's stop_distance_m (a waypoint planned on a sparse model can lie
+        at a wall: driving on would touch it)."""
+        d = self._drive
+        assert d is not None
+        motion = go_to(d, target_odom)
+        for cmd in motion:
+            if cmd[0] > 0.0 and perceive(self._sense.ranges_m, self._sense.angles_rad,
+                                         self.perception).front_m < self.nav.stop_distance_m:
+                motion.close()
+                yield STOP
+                return
+            yield cmd
 
     def _handed_over(self, here: _Here, exit_index: int | None
                      ) -> Generator[Step, None, _Here]:
@@ -388,7 +403,11 @@ class Explorer:
         island = self.graph.get_island(here.island_id)
         try:
             yield from execute_strategy(d, reverse_strategy(way))
-            fix = yield from localize_and_dock(d, island, Pose2D(0.0, 0.0, 0.0), self._fixed)
+            # Where odometry says the robot is in the island's frame: the reversed record
+            # rarely ends on the origin, and a fit searched from the origin instead can land
+            # in a wrong basin yet look trusted (a false arrival).
+            near = self._sense.odom.relative_to(here.origin_odom)
+            fix = yield from localize_and_dock(d, island, near, self._fixed)
         except RouteTimeoutError:
             fix = None
         if exit_index is not None:
