@@ -344,3 +344,30 @@ def test_no_progress_while_driving_counts_as_blocked() -> None:
     last = follower.decisions[-1]
     assert last.at_dead_end and last.choice is TurnChoice.BACK
     assert follower.state is FollowerState.TURN
+
+
+def test_a_pause_is_not_time_spent_stuck() -> None:
+    """Paused just after the wheels stopped (a controller took over), then resumed much later:
+    the pause does not count towards `stall_time_s`, so the follower does not see itself
+    blocked at once and turn back."""
+    rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]
+    world = grid_world(rows, Pose2D(5.0, 2.0, 0.0))
+    sonar = SonarModel(SonarConfig(ideal=True))
+    ranges, angles = sonar.scan(world, world.start_pose), sonar.angles_rad
+    cfg = HallFollowerConfig(stall_time_s=1.0)
+    follower = HallFollower(cfg)
+    stuck = Pose2D(5.0, 2.0, 0.0)
+    for k in range(6):  # 0.5 s of driving without progress: not yet a stall
+        follower.update(ranges, angles, stuck, 0.1 * k)
+    assert follower.stalls == 0
+    follower.set_enabled(False)
+    assert follower.update(ranges, angles, stuck, 30.0) == (0.0, 0.0)
+    follower.set_enabled(True)
+    v, _ = follower.update(ranges, angles, stuck, 60.0)  # resumed 60 s later, still in place
+    assert follower.stalls == 0
+    assert v > 0.0 and follower.state is FollowerState.FOLLOW
+    for k in range(1, 30):  # stuck for real after the resume: a stall, after stall_time_s
+        follower.update(ranges, angles, stuck, 60.0 + 0.1 * k)
+        if follower.stalls:
+            break
+    assert follower.stalls == 1 and 0.1 * k == pytest.approx(cfg.stall_time_s + 0.1, abs=0.25)

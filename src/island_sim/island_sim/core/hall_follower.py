@@ -153,6 +153,9 @@ class HallFollower:
             self._pending = None
             self._last_pose = None  # motion while paused is not part of the strategy
             self._started = False
+            self._stall_since = None  # the pause is not time spent stuck
+            self._last_t = None
+            self._last_v = 0.0
             for side in self._armed:
                 self._armed[side] = False
                 self._closed_since[side] = math.nan
