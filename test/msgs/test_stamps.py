@@ -132,3 +132,24 @@ def test_streams_release_their_newest_sample_at_or_before_each_scan() -> None:
         pairer.stream("gps", 7, _pose(7))
     with pytest.raises(StampError, match="covariance"):
         pairer.odometry(8, _pose(8), np.ones((2, 3)))
+
+
+def test_stamp_join_pairs_equal_stamps_and_drops_what_cannot_match() -> None:
+    from island_msgs_py.stamps import StampJoin
+
+    join: StampJoin[str, int] = StampJoin(max_buffer=2)
+    assert join.left(10, "a") == []
+    assert join.right(10, 1) == [(10, "a", 1)]
+    assert join.left(20, "b") == []  # its verdict never comes: the next one is for 30
+    assert join.left(30, "c") == []
+    assert join.right(30, 3) == [(30, "c", 3)]
+    assert join.unmatched_left == 1 and join.unmatched_right == 0
+    assert join.right(40, 4) == [] and join.left(50, "e") == []  # 40 has no scan
+    assert join.unmatched_right == 1
+    assert join.right(60, 6) == [] and join.unmatched_left == 2  # scan 50's verdict passed
+    join.right(70, 7)
+    join.right(80, 8)  # three verdicts waiting for scans, two kept: the oldest is dropped
+    assert join.overflow_right == 1 and join.overflow_left == 0
+    assert join.left(70, "g") == [(70, "g", 7)]
+    with pytest.raises(ValueError, match="max_buffer"):
+        StampJoin(0)

@@ -8,7 +8,8 @@ ROS-free (numpy only):
 - `raycast`: raycast, SegmentIndex, RayHits, RayCaster (the project's one ray caster);
 - `stamps`: ScanOdomPairer, the project's one scan/odometry stamp pairer: Paired (a scan with
   the odometry of its stamp), and with `every_odometry` every OdometrySample in stamp order,
-  StreamSample (extra pose streams such as ground truth), paired_only, StampError.
+  StreamSample (extra pose streams such as ground truth), paired_only, StampError; StampJoin
+  (two streams of one item per stamp, joined in stamp order).
 With rclpy and standard messages:
 - `conversions`: shared types and sensor/drive messages (Time, LaserScan, Odometry, Twist) <->
   core values, ConversionError; `qos`: STREAM_QOS, LATCHED; `ros_params`: declare_config,

@@ -218,3 +218,55 @@ class ScanOdomPairer(Generic[T]):
             else:
                 del self._odom[0]
         return out
+
+
+U = TypeVar("U")
+
+
+class StampJoin(Generic[T, U]):
+    """Joins two streams that carry one item per stamp each, in stamp order (e.g. the paired
+    scans a node got and another node's verdict on each): `left`/`right` add an item and return
+    the (stamp [ns], left item, right item) pairs now complete. An item whose counterpart can no
+    longer come (the other stream is past its stamp) is dropped and counted; each side keeps at
+    most `max_buffer` items waiting (the oldest beyond are dropped and counted)."""
+
+    def __init__(self, max_buffer: int) -> None:
+        if max_buffer < 1:
+            raise ValueError(f"StampJoin: max_buffer must be >= 1, got {max_buffer}")
+        self.max_buffer = max_buffer
+        self._left: deque[tuple[int, T]] = deque()
+        self._right: deque[tuple[int, U]] = deque()
+        self.unmatched_left = 0  # dropped: the right stream passed its stamp
+        self.unmatched_right = 0
+        self.overflow_left = 0  # dropped: more than max_buffer waiting
+        self.overflow_right = 0
+
+    def left(self, t_ns: int, item: T) -> list[tuple[int, T, U]]:
+        self._left.append((t_ns, item))
+        return self._join()
+
+    def right(self, t_ns: int, item: U) -> list[tuple[int, T, U]]:
+        self._right.append((t_ns, item))
+        return self._join()
+
+    def _join(self) -> list[tuple[int, T, U]]:
+        out: list[tuple[int, T, U]] = []
+        while self._left and self._right:
+            (t_l, a), (t_r, b) = self._left[0], self._right[0]
+            if t_l < t_r:
+                self._left.popleft()
+                self.unmatched_left += 1
+            elif t_r < t_l:
+                self._right.popleft()
+                self.unmatched_right += 1
+            else:
+                self._left.popleft()
+                self._right.popleft()
+                out.append((t_l, a, b))
+        while len(self._left) > self.max_buffer:
+            self._left.popleft()
+            self.overflow_left += 1
+        while len(self._right) > self.max_buffer:
+            self._right.popleft()
+            self.overflow_right += 1
+        return out

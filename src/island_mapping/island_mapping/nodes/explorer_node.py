@@ -44,7 +44,7 @@ from island_msgs_py.hall_perception import HallPerceptionConfig
 from island_msgs_py.json_io import GraphFormatError
 from island_msgs_py.qos import LATCHED, STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, clock_ns, declare_config, log_ready, run_node
-from island_msgs_py.stamps import Paired, ScanOdomPairer, paired_only
+from island_msgs_py.stamps import Paired, ScanOdomPairer, StampJoin, paired_only
 from island_msgs_py.types import ControlStrategy, ExitUpdate, FloatArray, IslandTypeError
 from nav_msgs.msg import Odometry
 from rcl_interfaces.srv import SetParameters
@@ -123,8 +123,8 @@ class ExplorerNode(Node):
         self._pairer: ScanOdomPairer[tuple[FloatArray, FloatArray]] = ScanOdomPairer(
             c.odom_buffer)
         self._twists: deque[tuple[int, float, float]] = deque(maxlen=c.odom_buffer)
-        self._scans: deque[tuple[int, _Scan]] = deque()
-        self._decisions: deque[mcv.Decision] = deque()
+        self._join: StampJoin[_Scan, mcv.Decision] = StampJoin(c.odom_buffer)
+        self._overflow_seen: dict[str, int] = {}
         self._last_v_mps = 0.0  # what the explorer commanded for the last scan it answered
         self._status = ""
         self.scans_decided = 0
@@ -198,16 +198,16 @@ class ExplorerNode(Node):
         for p in paired:
             v, w = next(((v, w) for t, v, w in reversed(self._twists) if t <= p.stamp_ns),
                         (0.0, 0.0))
-            self._scans.append((p.stamp_ns, _Scan(p.payload[0], p.payload[1], p.pose, w, v)))
-        self._decide()
+            self._decide(self._join.left(p.stamp_ns,
+                                         _Scan(p.payload[0], p.payload[1], p.pose, w, v)))
 
     def _on_decision(self, msg: String) -> None:
         try:
-            self._decisions.append(mcv.msg_to_decision(msg))
+            d = mcv.msg_to_decision(msg)
         except mcv.ExplorerMessageError as exc:
             self._warn("island_builder/decision", exc)
             return
-        self._decide()
+        self._decide(self._join.right(d.stamp_ns, d))
 
     def _on_graph(self, msg: String) -> None:
         try:
@@ -222,23 +222,15 @@ class ExplorerNode(Node):
             self._warn("hall_follower/progress", exc)
 
     # --- one decision per scan, once the builder's verdict on it is in -------------------------
-    def _decide(self) -> None:
-        limit = self.cfg.odom_buffer
-        while self._scans and self._decisions:
-            (t_scan, scan), d = self._scans[0], self._decisions[0]
-            if t_scan < d.stamp_ns:  # its verdict will not come (the builder missed the scan)
-                self._scans.popleft()
-            elif d.stamp_ns < t_scan:  # the builder decided a scan this node never got
-                self._decisions.popleft()
-            else:
-                self._scans.popleft()
-                self._decisions.popleft()
-                self._step(t_scan, scan, d)
-        for q, what in ((self._scans, "sonar/scan"), (self._decisions, "island_builder/decision")):
-            while len(q) > limit:
-                q.popleft()
+    def _decide(self, joined: list[tuple[int, _Scan, mcv.Decision]]) -> None:
+        overflow = (self._join.overflow_left, self._join.overflow_right)
+        for t_scan, scan, d in joined:
+            self._step(t_scan, scan, d)
+        for n, what in zip(overflow, ("sonar/scan", "island_builder/decision"), strict=True):
+            for _ in range(n - self._overflow_seen.get(what, 0)):
                 self._warn(what, ValueError("no counterpart arrived (scan without the "
                                             "builder's decision or the reverse): dropped"))
+            self._overflow_seen[what] = n
 
     def _step(self, t_ns: int, scan: _Scan, decision: mcv.Decision) -> None:
         self.scans_decided += 1
