@@ -47,7 +47,7 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
-from island_msgs_py.ros_params import ensure_ros_env
+from island_msgs_py.ros_params import destroy_nodes, ensure_ros_env
 from mcap.reader import make_reader
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -394,8 +394,7 @@ class _Replayer:
 
     def close(self) -> None:
         self.executor.shutdown()
-        for n in (self.player, self.builder, self.server):
-            n.destroy_node()
+        destroy_nodes([self.player, self.builder, self.server])
 
 
 def _message_class(topic: str, type_name: str) -> Any:

@@ -32,7 +32,7 @@ from island_msgs_py.conversions import odometry_to_pose
 from island_msgs_py.errors import InputError
 from island_msgs_py.inputs import parse_int
 from island_msgs_py.limits import MAX_DOMAIN_ID, MAX_SEED
-from island_msgs_py.ros_params import ensure_ros_env
+from island_msgs_py.ros_params import destroy_nodes, ensure_ros_env
 from island_msgs_py.types import FloatArray
 from island_sim.core.hall_follower_config import HallFollowerConfig
 from island_sim.nodes.hall_follower_node import HallFollowerNode
@@ -288,8 +288,7 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
         if recorder is not None:
             recorder.close()
         executor.shutdown()
-        for n in nodes:
-            n.destroy_node()
+        destroy_nodes(nodes)
         ctx.try_shutdown()
 
 

@@ -131,6 +131,23 @@ def ensure_ros_env() -> None:
     os.environ.setdefault("AMENT_PREFIX_PATH", sys.prefix)
 
 
+DISCOVERY_SETTLE_S = 0.2
+"""Wall time given to DDS discovery traffic before nodes of one context are destroyed, and
+again before the last one (which takes the context's DDS participant with it) [s]."""
+
+
+def destroy_nodes(nodes: Sequence[Node], settle_s: float = DISCOVERY_SETTLE_S) -> None:
+    """Destroy `nodes` (all of one context, its executor already shut down), letting the
+    discovery announcements of their endpoints drain first and again before the last node."""
+    if not nodes:
+        return
+    time.sleep(settle_s)
+    for n in nodes[:-1]:
+        n.destroy_node()
+    time.sleep(settle_s)
+    nodes[-1].destroy_node()
+
+
 # --- parameters from config dataclasses ----------------------------------------------------------
 
 def _ros_value(value: Any) -> Any:
