@@ -10,6 +10,7 @@ import pytest
 from island_mapping.bag.reader import open_bag
 from island_mapping.cli import main
 from island_mapping.core.graph import TopoGraph
+from island_mapping.executors import ExecutorKind
 from island_mapping.runner import RunConfig, RunParameterError, run
 from island_msgs_py.json_io import load_graph_json
 from island_sim.core.robot import OdometryConfig
@@ -83,6 +84,7 @@ def test_explore_rejects_a_bad_world(tmp_path: Path, capsys: pytest.CaptureFixtu
 
 
 @pytest.mark.parametrize(("flag", "value", "message"), [
+    ("--executor", "multi", "invalid choice: 'multi'"),
     ("--param", "odometry.wheelbase_error=0.01", "expected NODE:NAME=VALUE"),
     ("--param", "odometry_node:odometry.wheelbase_error", "expected NAME=VALUE"),
     ("--builder-param", "builder.e_min_m", "expected NAME=VALUE"),
@@ -121,9 +123,12 @@ def test_explore_names_a_parameter_no_node_has(
     assert "Traceback" not in err and not (tmp_path / "o" / "summary.json").exists()
 
 
-def test_a_run_drives_and_reports_the_parameters_it_was_given(tmp_path: Path) -> None:
-    """An odometry override reaches the robot, and route evaluation drives the same robot."""
-    rec = run(RunConfig(sim_seconds=2.0, params={
+@pytest.mark.parametrize("executor", list(ExecutorKind))
+def test_a_run_drives_and_reports_the_parameters_it_was_given(
+        tmp_path: Path, executor: ExecutorKind) -> None:
+    """An odometry override reaches the robot, and route evaluation drives the same robot;
+    on either executor."""
+    rec = run(RunConfig(sim_seconds=2.0, executor=executor, params={
         "odometry_node": {"odometry.var_heading_rad2_per_rad": 0.002},
     }))
     assert rec.sim_setup is not None

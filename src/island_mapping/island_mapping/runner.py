@@ -40,7 +40,7 @@ from island_sim.nodes.odometry_node import OdometryNode
 from island_sim.nodes.sonar_node import SonarNode
 from nav_msgs.msg import Odometry
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
@@ -52,6 +52,7 @@ from island_mapping.core.graph import TopoGraph
 from island_mapping.evaluation.explore_eval import Policy
 from island_mapping.evaluation.explore_exits import straight_first
 from island_mapping.evaluation.navigate import SimSetup
+from island_mapping.executors import ExecutorKind, make_executor
 from island_mapping.nodes.explorer_node import ExplorerNode
 from island_mapping.nodes.island_builder_node import IslandBuilderNode
 from island_mapping.nodes.island_localizer_node import IslandLocalizerNode
@@ -106,6 +107,11 @@ class RunConfig:
         default=Policy.HALL_FOLLOWING,
         metadata={"help": "hall_following: the paper's plain run; exits: exploration by the map "
                           "(explorer_node), ending when it is done or at sim_seconds"},
+    )
+    executor: ExecutorKind = field(
+        default=ExecutorKind.EVENTS,
+        metadata={"help": "events: rclpy's events executor (the single-threaded one where rclpy "
+                          "has none); single_threaded: rclpy's SingleThreadedExecutor"},
     )
 
 
@@ -220,7 +226,7 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
     rclpy.init(context=ctx, domain_id=resolve_domain_id(cfg.domain_id))
     nodes: list[Node] = []
     recorder: RunRecorder | None = None
-    executor = SingleThreadedExecutor(context=ctx)
+    executor = make_executor(cfg.executor, ctx)
     try:
         sim_time = {"use_sim_time": True}
         exits = cfg.policy is Policy.EXITS
@@ -292,7 +298,7 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
         ctx.try_shutdown()
 
 
-def _spin_until_finished(executor: SingleThreadedExecutor, odo: OdometryNode,
+def _spin_until_finished(executor: Executor, odo: OdometryNode,
                          explorer: ExplorerNode | None, cfg: RunConfig,
                          progress: Callable[[float], None] | None) -> float:
     """Spin until the simulator has run `cfg.sim_seconds` (or the explorer, if any, is done),
@@ -331,7 +337,7 @@ def _managed(params: dict[str, dict[str, Any]]) -> dict[str, Any]:
     return {"managed": True, **shared}
 
 
-def _wait_for_builder(executor: SingleThreadedExecutor, builder: IslandBuilderNode,
+def _wait_for_builder(executor: Executor, builder: IslandBuilderNode,
                       explorer: ExplorerNode | None = None) -> None:
     """Spin until the builder maps (its services found) and hears the robot's topics, and the
     explorer (if any) explores."""
@@ -348,7 +354,7 @@ def _wait_for_builder(executor: SingleThreadedExecutor, builder: IslandBuilderNo
                    "s wall (its services or the robot's topics were not found)")
 
 
-def _wait_for_recorder(executor: SingleThreadedExecutor, recorder: RunRecorder) -> None:
+def _wait_for_recorder(executor: Executor, recorder: RunRecorder) -> None:
     """Spin until the recorder has matched the publishers whose first messages matter."""
     deadline = time.monotonic() + RECORDER_MATCH_WAIT_S
     while time.monotonic() < deadline:

@@ -55,6 +55,7 @@ from island_mapping.core.route import NavigateError
 from island_mapping.evaluation.explore_eval import Policy
 from island_mapping.evaluation.navigate import SimSetup
 from island_mapping.evaluation.routes import EdgeResult, evaluate_routes
+from island_mapping.executors import ExecutorKind
 
 if TYPE_CHECKING:
     from island_mapping.runner import RunRecord
@@ -96,6 +97,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="hall_following (default): the paper's plain hall following; "
                              "exits: exploration by the map (explorer_node), ending by itself "
                              "when no unexplored exit is left")
+    parser.add_argument("--executor", choices=[k.value for k in ExecutorKind],
+                        default=ExecutorKind.EVENTS.value,
+                        help="the executor all nodes share: events (default; rclpy's events "
+                             "executor, the single-threaded one where rclpy has none) or "
+                             "single_threaded")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -196,7 +202,8 @@ def run(args: argparse.Namespace) -> int:
     cfg = RunConfig(world=spec, seed=args.seed, sim_seconds=args.sim_seconds,
                     record_dir="" if args.no_record else str(bag_dir),
                     wall_timeout_s=args.wall_timeout, domain_id=_domain_id(args.domain_id),
-                    params=params, policy=Policy(args.policy))
+                    params=params, policy=Policy(args.policy),
+                    executor=ExecutorKind(args.executor))
     try:
         rec = run_nodes(cfg, progress)
     except RunParameterError as exc:
