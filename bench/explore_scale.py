@@ -53,7 +53,7 @@ COMPONENTS = (
     ("island_mapping/conversions", "ROS nodes (conversions, callbacks)"),
     ("island_msgs_py/raycast", "ray casting (sonar, exits)"),
     ("island_msgs_py/hall_perception", "hall follower"),
-    ("island_msgs_py", "messages, stamps, checks"),
+    ("island_msgs_py", "shared geometry, messages, checks (island_msgs_py)"),
     ("island_mapping/evaluation", "evaluation (harness, routes, world yardstick)"),
     ("island_sim/core", "world yardstick (places, free space)"),
     ("island_mapping/runner", "ROS executor and runner"),
