@@ -76,7 +76,7 @@ def test_an_opening_passed_becomes_a_prefix_and_a_side() -> None:
 
 def test_narrow_gaps_turns_and_an_open_end_are_not_openings() -> None:
     short = OpeningWatch(CFG, S(""))
-    drive(short, (5.0, 5.5))  # 0.5 m < side_min_width_m
+    drive(short, (5.0, 5.3))  # 0.3 m < side_min_width_m
     turned = OpeningWatch(CFG, S(""))
     drive(turned, (5.0, 7.0), turn_at_m=6.0)  # the follower turned into it
     still = OpeningWatch(CFG, S(""))

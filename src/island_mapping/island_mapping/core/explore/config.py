@@ -159,7 +159,7 @@ class ExplorerConfig:
                           "[-]"},
     )
     side_min_width_m: float = field(
-        default=0.8,
+        default=0.5,
         metadata={"help": "a side must stay open over this much straight driving to be a side "
                           "exit [m]"},
     )

@@ -199,8 +199,9 @@ def side_departure(d: Drive, ex: Exit, origin_theta: float, cfg: ExplorerConfig
                    ) -> Generator[Command, None, bool]:
     """From its island's origin (facing odometric heading origin_theta [rad]: the island's
     theta 0): the side exit's prefix, the opening sought by perception over the last
-    side_search_m of it and as far past, a quarter turn into it; False when it is not found
-    open or the time (d.deadline_s) ran out."""
+    side_search_m of it and as far past, a quarter turn into it (through it, door_through_m,
+    when it is a doorway: narrower than door_max_width_m); False when it is not found open or
+    the time (d.deadline_s) ran out."""
     assert ex.prefix is not None and ex.side is not None
     way, cut = approach(ex.prefix, cfg.side_search_m)
     try:
@@ -211,10 +212,15 @@ def side_departure(d: Drive, ex: Exit, origin_theta: float, cfg: ExplorerConfig
             return False
         turn = math.pi / 2 if ex.side is ExitSide.LEFT else -math.pi / 2
         yield from rotate_to(d, wrap_angle(d.sense.odom.theta + turn))
+        # straight ahead, not the robot's whole path: a doorway is hardly wider than the robot
+        ahead = perceive(d.sense.ranges_m, d.sense.angles_rad, d.perception).front_free_m
+        if ahead < cfg.depart_min_free_m:
+            return False
+        if ex.width_m <= cfg.door_max_width_m:  # through the doorway before the follower
+            yield from go_along_hall(d, cfg.door_through_m)
     except RouteTimeoutError:
         return False
-    return perceive(d.sense.ranges_m, d.sense.angles_rad,
-                    d.perception).front_m >= cfg.depart_min_free_m
+    return True
 
 
 def seek_side(d: Drive, side: ExitSide, max_m: float, into_m: float
