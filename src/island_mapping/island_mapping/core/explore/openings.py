@@ -212,8 +212,9 @@ def side_departure(d: Drive, ex: Exit, origin_theta: float, cfg: ExplorerConfig
             return False
         turn = math.pi / 2 if ex.side is ExitSide.LEFT else -math.pi / 2
         yield from rotate_to(d, wrap_angle(d.sense.odom.theta + turn))
-        # straight ahead, not the robot's whole path: a doorway is hardly wider than the robot
-        ahead = perceive(d.sense.ranges_m, d.sense.angles_rad, d.perception).front_free_m
+        # the robot's whole path must be free: turned short of a doorway's middle, a jamb in
+        # the way holds the follower against the wall for the whole exit cap
+        ahead = perceive(d.sense.ranges_m, d.sense.angles_rad, d.perception).front_m
         if ahead < cfg.depart_min_free_m:
             return False
         if ex.width_m <= cfg.door_max_width_m:  # through the doorway before the follower
