@@ -154,3 +154,10 @@ def test_a_new_exit_names_an_unknown_island_or_a_taken_index() -> None:
                                    '"side": "left"}}')
     item = NewExit(1, dataclasses.replace(SIDE, index=2))
     assert json_io.new_exit_from_json(json_io.new_exit_to_json(item)) == item
+
+
+def test_a_new_exit_is_a_topo_graph_add_item() -> None:
+    from island_msgs_py import conversions as cv
+    item = NewExit(2, dataclasses.replace(SIDE, index=5))
+    param = cv.new_exit_to_parameter(item)
+    assert param.name == "new_exit" and cv.parameter_to_item(param) == item
