@@ -136,7 +136,7 @@ def test_add_reports_each_item_and_rejects_bad_ones(harness: Harness) -> None:
     assert reasons[0] == "edge 0->9: unknown target island 9"
     assert reasons[1].startswith("island.model.segments[1]: NaN")
     assert reasons[2] == "edge: an edge from island 0 to itself"
-    assert "expected 'island' or 'edge'" in reasons[3]
+    assert "expected 'island', 'edge'" in reasons[3]
     assert "not valid JSON" in reasons[4]
     assert "expected a string" in reasons[5]
     assert reasons[6:] == ["replaced island 1", "added edge 3->0"]

@@ -34,7 +34,7 @@ def test_exit_item_round_trip_and_errors() -> None:
     with pytest.raises(GraphFormatError, match=r"^exit\.state: missing"):
         cv.parameter_to_item(bad)
     wrong = Parameter(name="exits", value=ParameterValue(type=ParameterType.PARAMETER_STRING))
-    with pytest.raises(GraphFormatError, match="expected 'island' or 'edge' or 'exit'"):
+    with pytest.raises(GraphFormatError, match="expected 'island', 'edge', 'exit' or 'new_exit'"):
         cv.parameter_to_item(wrong)
 
 

@@ -57,6 +57,7 @@ from island_msgs_py.types import (
     FloatArray,
     Island,
     IslandTypeError,
+    NewExit,
     Pose2D,
 )
 
@@ -64,7 +65,8 @@ DISPLAY_FRAME = "islands_layout"  # display-only frame of the marker layout
 ISLAND_PARAM = "island"
 EDGE_PARAM = "edge"
 EXIT_PARAM = "exit"
-ITEM_PARAMS = (ISLAND_PARAM, EDGE_PARAM, EXIT_PARAM)
+NEW_EXIT_PARAM = "new_exit"
+ITEM_PARAMS = (ISLAND_PARAM, EDGE_PARAM, EXIT_PARAM, NEW_EXIT_PARAM)
 NS_PER_S = 1_000_000_000
 _COV_INDEX = (0, 1, 5)  # x, y, yaw rows/cols of ROS's 6x6 pose covariance
 _COV_ROWS, _COV_COLS = np.ix_(_COV_INDEX, _COV_INDEX)
@@ -176,12 +178,18 @@ def exit_update_to_parameter(update: ExitUpdate) -> Parameter:
         type=ParameterType.PARAMETER_STRING, string_value=json_io.exit_update_to_json(update)))
 
 
-def parameter_to_item(param: Parameter, path: str = "parameter") -> Island | Edge | ExitUpdate:
+def new_exit_to_parameter(item: NewExit) -> Parameter:
+    return Parameter(name=NEW_EXIT_PARAM, value=ParameterValue(
+        type=ParameterType.PARAMETER_STRING, string_value=json_io.new_exit_to_json(item)))
+
+
+def parameter_to_item(param: Parameter, path: str = "parameter"
+                      ) -> Island | Edge | ExitUpdate | NewExit:
     """Decode one `/topo_graph/add` item; raises json_io.GraphFormatError when malformed."""
     if param.name not in ITEM_PARAMS:
         raise json_io.GraphFormatError(
-            f"{path}.name", f"expected {ISLAND_PARAM!r} or {EDGE_PARAM!r} or {EXIT_PARAM!r}, "
-            f"got {param.name[:40]!r}")
+            f"{path}.name", f"expected {ISLAND_PARAM!r}, {EDGE_PARAM!r}, {EXIT_PARAM!r} or "
+            f"{NEW_EXIT_PARAM!r}, got {param.name[:40]!r}")
     if param.value.type != ParameterType.PARAMETER_STRING:
         raise json_io.GraphFormatError(
             f"{path}.value", f"expected a string (type {ParameterType.PARAMETER_STRING}) holding "
@@ -190,6 +198,8 @@ def parameter_to_item(param: Parameter, path: str = "parameter") -> Island | Edg
         return json_io.island_from_json(param.value.string_value, param.name)
     if param.name == EXIT_PARAM:
         return json_io.exit_update_from_json(param.value.string_value, param.name)
+    if param.name == NEW_EXIT_PARAM:
+        return json_io.new_exit_from_json(param.value.string_value, param.name)
     return json_io.edge_from_json(param.value.string_value, param.name)
 
 

@@ -8,13 +8,24 @@ Graph document (format "islands-graph", version 2; version 1, without exits, is 
                   "origin_truth": null | {"x": .., "y": .., "theta": ..},
                   "exits": [{"index": 0, "heading_rad": 1.57, "width_m": 1.2,
                              "state": "unexplored" | "explored" | "blocked",
-                             "edge": null | [source, target]}, ...]}, ...],
+                             "edge": null | [source, target],
+                             "prefix": "Go 540", "side": "left" | "right"}, ...]}, ...],
      "edges": [{"source": 0, "target": 1, "strategy": "Go 125, Rot 270, Go 652",
                 "weight": 8.1, "length_m": 7.77, "expected_error_m": 0.33,
                 "source_exit": null | 0, "target_exit": null | 2}, ...]}
 
 `exits`, `source_exit` and `target_exit` are optional and written only when set, so a map
-without exits reads and writes as in version 1 (but for the version number).
+without exits reads and writes as in version 1 (but for the version number). An exit's
+`prefix` and `side` (a side exit: an opening beside an edge, reached from the island's origin
+by the strategy `prefix`, then a turn to `side`) are written only for a side exit; an exit
+without them is a plain exit at the island's origin (files written before side exits load as
+they did).
+
+An exit added to an island (an item of the graph server's `/topo_graph/add`, `new_exit`)::
+
+    {"island": 3, "exit": {"index": 4, "heading_rad": 1.57, "width_m": 1.2,
+                           "state": "unexplored", "edge": null, "prefix": "Go 540",
+                           "side": "left"}}
 
 An exit change (an item of the graph server's `/topo_graph/add`)::
 
@@ -60,12 +71,14 @@ from island_msgs_py.types import (
     ControlStrategy,
     Edge,
     Exit,
+    ExitSide,
     ExitState,
     ExitUpdate,
     Island,
     IslandTypeError,
     LineModel,
     ModelType,
+    NewExit,
     Pose2D,
 )
 
@@ -81,7 +94,7 @@ _ISLAND_REQUIRED = {"id", "model_type", "r", "built_at_s", "model"}
 _EDGE_KEYS_V1 = {"source", "target", "strategy", "weight", "length_m", "expected_error_m"}
 _EDGE_KEYS = _EDGE_KEYS_V1 | {"source_exit", "target_exit"}
 _EDGE_REQUIRED = {"source", "target", "strategy", "weight"}
-_EXIT_KEYS = {"index", "heading_rad", "width_m", "state", "edge"}
+_EXIT_KEYS = {"index", "heading_rad", "width_m", "state", "edge", "prefix", "side"}
 _EXIT_REQUIRED = {"index", "heading_rad", "width_m", "state"}
 _EXIT_UPDATE_KEYS = {"island", "exit", "state", "edge"}
 _EXIT_UPDATE_REQUIRED = {"island", "exit", "state"}
@@ -136,13 +149,42 @@ def segments_from_json(value: Any, path: str) -> np.ndarray:
 
 
 def exit_to_dict(e: Exit) -> dict[str, Any]:
-    return {
+    d: dict[str, Any] = {
         "index": e.index,
         "heading_rad": e.heading_rad,
         "width_m": e.width_m,
         "state": e.state.value,
         "edge": None if e.edge is None else list(e.edge),
     }
+    if e.prefix is not None and e.side is not None:
+        d["prefix"] = str(e.prefix)
+        d["side"] = e.side.value
+    return d
+
+
+def _exit_side(value: Any, path: str) -> ExitSide:
+    text = jc.str_(value, path)
+    try:
+        return ExitSide(text)
+    except ValueError:
+        known = ", ".join(s.value for s in ExitSide)
+        raise GraphFormatError(path, f"unknown side {text!r} (known: {known})") from None
+
+
+def side_fields(obj: Mapping[str, Any], path: str
+                ) -> tuple[ControlStrategy | None, ExitSide | None]:
+    """A side exit's `prefix` (a strategy, `Go 540, Rot 90, Go 120`) and `side`; both absent:
+    a plain exit (None, None)."""
+    if "prefix" not in obj and "side" not in obj:
+        return None, None
+    if "prefix" not in obj or "side" not in obj:
+        missing = "prefix" if "prefix" not in obj else "side"
+        raise GraphFormatError(f"{path}.{missing}", "a side exit needs both prefix and side")
+    try:
+        prefix = ControlStrategy.parse(jc.str_(obj["prefix"], f"{path}.prefix"))
+    except IslandTypeError as exc:
+        raise GraphFormatError(f"{path}.prefix", f"not a strategy: {exc}") from exc
+    return prefix, _exit_side(obj["side"], f"{path}.side")
 
 
 def _exit_state(value: Any, path: str) -> ExitState:
@@ -173,9 +215,10 @@ def exit_from_dict(d: Any, path: str = "exit") -> Exit:
         raise GraphFormatError(f"{path}.width_m", f"must be > 0, got {width}")
     state = _exit_state(obj["state"], f"{path}.state")
     edge = _edge_ref(obj.get("edge"), f"{path}.edge")
+    prefix, side = side_fields(obj, path)
     try:
         return Exit(jc.int_(obj["index"], f"{path}.index", 0, MAX_EXIT_INDEX), heading, width,
-                    state, edge)
+                    state, edge, prefix, side)
     except IslandTypeError as exc:
         raise GraphFormatError(path, str(exc)) from exc
 
@@ -320,6 +363,31 @@ def exit_update_from_dict(d: Any, path: str = "exit") -> ExitUpdate:
         return ExitUpdate(island, index, state, edge)
     except IslandTypeError as exc:
         raise GraphFormatError(path, str(exc)) from exc
+
+
+_NEW_EXIT_KEYS = {"island", "exit"}
+
+
+def new_exit_to_dict(item: NewExit) -> dict[str, Any]:
+    return {"island": item.island, "exit": exit_to_dict(item.exit)}
+
+
+def new_exit_from_dict(d: Any, path: str = "new_exit") -> NewExit:
+    obj = jc.obj(d, path, _NEW_EXIT_KEYS, _NEW_EXIT_KEYS)
+    island = jc.island_id(obj["island"], f"{path}.island")
+    ex = exit_from_dict(obj["exit"], f"{path}.exit")
+    if ex.edge is not None and island not in ex.edge:
+        raise GraphFormatError(f"{path}.exit.edge",
+                               f"edge {ex.edge[0]}->{ex.edge[1]} does not touch island {island}")
+    return NewExit(island, ex)
+
+
+def new_exit_to_json(item: NewExit) -> str:
+    return dumps(new_exit_to_dict(item))
+
+
+def new_exit_from_json(text: str | bytes, path: str = "new_exit") -> NewExit:
+    return new_exit_from_dict(loads(text, path, MAX_ITEM_JSON_BYTES), path)
 
 
 # ----------------------------------------------------------------------------- whole graph

@@ -221,6 +221,13 @@ class ExitState(StrEnum):
     BLOCKED = "blocked"  # tried or seen closed: not worth exploring
 
 
+class ExitSide(StrEnum):
+    """The side of the robot a side opening lies on (the turn that enters it)."""
+
+    LEFT = "left"  # a quarter turn counter-clockwise
+    RIGHT = "right"  # a quarter turn clockwise
+
+
 @dataclass(frozen=True)
 class Exit:
     """A direction in which free space leads away from an island, in the island's own frame.
@@ -229,6 +236,11 @@ class Exit:
     direction from the island origin [rad] in [-pi, pi]; `width_m` the opening's width [m];
     `edge` is the (source, target) of the edge that explored it: set exactly when the state is
     `explored`.
+
+    A *side exit* is an opening seen beside the way while driving an edge: `prefix` is the
+    strategy from the island's origin (facing its theta 0) to the opening and `side` the turn
+    that enters it there; its `heading_rad` is then the heading after that turn. Both are set
+    or neither (a plain exit at the origin).
     """
 
     index: int
@@ -236,6 +248,8 @@ class Exit:
     width_m: float
     state: ExitState = ExitState.UNEXPLORED
     edge: tuple[int, int] | None = None
+    prefix: ControlStrategy | None = None
+    side: ExitSide | None = None
 
     def __post_init__(self) -> None:
         name = f"exit {self.index}"
@@ -263,6 +277,28 @@ class Exit:
             raise IslandTypeError(
                 f"{name}: an explored exit names the edge that explored it, and only an "
                 f"explored one (state {self.state.value}, edge {self.edge})")
+        self._check_side(name)
+
+    def _check_side(self, name: str) -> None:
+        if (self.prefix is None) != (self.side is None):
+            raise IslandTypeError(
+                f"{name}: a side exit has both a prefix and a side (prefix {self.prefix}, "
+                f"side {self.side})")
+        if self.prefix is None:
+            return
+        if not isinstance(self.prefix, ControlStrategy):
+            raise IslandTypeError(f"{name}: prefix must be a control strategy, got "
+                                  f"{type(self.prefix).__name__}")
+        if self.prefix.length_m <= 0.0:
+            raise IslandTypeError(f"{name}: a side exit's prefix must drive (a Go), got "
+                                  f"{str(self.prefix)!r}")
+        if not isinstance(self.side, ExitSide):
+            raise IslandTypeError(f"{name}: unknown side {self.side!r} (known: left, right)")
+
+    @property
+    def is_side(self) -> bool:
+        """A side exit (reached by `prefix` then a turn to `side`), not one at the origin."""
+        return self.prefix is not None
 
 
 @dataclass(frozen=True)
@@ -278,6 +314,19 @@ class ExitUpdate:
     def __post_init__(self) -> None:
         _check_island_id(self.island, "exit update island")
         Exit(self.index, 0.0, 1.0, self.state, self.edge)  # the same checks as an exit's
+
+
+@dataclass(frozen=True)
+class NewExit:
+    """An exit added to an existing island (a side opening seen on an edge that left it)."""
+
+    island: int
+    exit: Exit
+
+    def __post_init__(self) -> None:
+        _check_island_id(self.island, "new exit island")
+        if not isinstance(self.exit, Exit):
+            raise IslandTypeError(f"new exit: expected an Exit, got {type(self.exit).__name__}")
 
 
 def _check_island_id(value: int, name: str) -> None:

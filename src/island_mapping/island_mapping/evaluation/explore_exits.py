@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from island_msgs_py.types import ExitUpdate, FloatArray, Island, Pose2D, wrap_angle
+from island_msgs_py.types import ExitUpdate, FloatArray, Island, NewExit, Pose2D, wrap_angle
 from island_sim.core.hall_follower import HallFollower, HallFollowerConfig, TurnPolicy
 from island_sim.core.robot import SimRobot
 from island_sim.core.sonar import SonarModel
@@ -248,5 +248,7 @@ def _apply_requests(requests: tuple[object, ...], builder: IslandBuilder, graph:
             builder.abort()
         elif isinstance(r, ExitUpdate):
             graph.apply_exit_update(r)
+        elif isinstance(r, NewExit):
+            graph.add_exit(r)
     return handed
 

@@ -45,7 +45,7 @@ from island_msgs_py.json_io import GraphFormatError
 from island_msgs_py.qos import LATCHED, STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, clock_ns, declare_config, log_ready, run_node
 from island_msgs_py.stamps import Paired, ScanOdomPairer, StampJoin, paired_only
-from island_msgs_py.types import ControlStrategy, ExitUpdate, FloatArray, IslandTypeError
+from island_msgs_py.types import ControlStrategy, ExitUpdate, FloatArray, IslandTypeError, NewExit
 from nav_msgs.msg import Odometry
 from rcl_interfaces.srv import SetParameters
 from rclpy.clock import Clock, ClockType
@@ -248,11 +248,14 @@ class ExplorerNode(Node):
         self._publish_status()
 
     # --- outputs -------------------------------------------------------------------------------
-    def _send(self, requests: tuple[mcv.ExplorerRequest | ExitUpdate, ...]) -> None:
-        """The mission's requests: to the builder in order, blocked exits to the map."""
+    def _send(self, requests: tuple[mcv.ExplorerRequest | ExitUpdate | NewExit, ...]) -> None:
+        """The mission's requests: to the builder in order; exits' new states and side exits
+        to the map, in order."""
         to_builder = [mcv.request_to_parameter(r) for r in requests
-                      if not isinstance(r, ExitUpdate)]
-        exits = [cv.exit_update_to_parameter(r) for r in requests if isinstance(r, ExitUpdate)]
+                      if not isinstance(r, ExitUpdate | NewExit)]
+        exits = [cv.exit_update_to_parameter(r) if isinstance(r, ExitUpdate)
+                 else cv.new_exit_to_parameter(r)
+                 for r in requests if isinstance(r, ExitUpdate | NewExit)]
         for cli, params in ((self.builder_cli, to_builder), (self.add_cli, exits)):
             if params:
                 fut = cli.call_async(SetParameters.Request(parameters=params))

@@ -5,8 +5,9 @@ Topics (latched: reliable, transient local, depth 1; republished after every cha
                       stamped with the node's clock (sim time with use_sim_time)
   topo_graph/json     std_msgs/String                 (the versioned graph JSON document)
 Services:
-  topo_graph/add   rcl_interfaces/srv/SetParameters  each Parameter named `island`, `edge` or
-                   `exit` with a JSON string value; add or replace (an exit: set its state);
+  topo_graph/add   rcl_interfaces/srv/SetParameters  each Parameter named `island`, `edge`,
+                   `exit` or `new_exit` with a JSON string value; add or replace (an exit: set
+                   its state; a new exit: add it to an existing island);
                    one result per item; at most `max_items_per_request` items
   topo_graph/get   std_srvs/srv/Trigger             message = the graph JSON
   topo_graph/plan  nav_msgs/srv/GetPlan             start/goal header.frame_id = island frames
@@ -30,7 +31,7 @@ from typing import Any
 from island_msgs_py.json_io import GraphFormatError
 from island_msgs_py.qos import LATCHED
 from island_msgs_py.ros_params import declare_config, log_ready, run_node
-from island_msgs_py.types import ExitUpdate, Island, IslandTypeError
+from island_msgs_py.types import ExitUpdate, Island, IslandTypeError, NewExit
 from nav_msgs.msg import Path as PathMsg
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
@@ -108,6 +109,10 @@ class TopoGraphServerNode(Node):
                       else self.graph.apply_exit_update(item))
             state = next(e for e in island.exits if e.index == item.index).state
             return f"set exit {item.index} of island {item.island} to {state.value}"
+        if isinstance(item, NewExit):
+            island = (self.store.add_exit(item) if self.store is not None
+                      else self.graph.add_exit(item))
+            return f"added exit {item.exit.index} to island {island.id}"
         if isinstance(item, Island):
             replaced = (self.store.put_island(item) if self.store is not None
                         else self.graph.put_island(item))

@@ -154,9 +154,10 @@ def exit_evidence(att: Attempt, model: LineModel, shift: Pose2D, approach: Float
 
 
 def facing_exit(island: Island, heading_rad: float, within_deg: float) -> Exit | None:
-    """The island's exit nearest `heading_rad`, if within `within_deg` [deg]."""
-    best = min(island.exits, key=lambda e: abs(wrap_angle(e.heading_rad - heading_rad)),
-               default=None)
+    """The island's exit at its origin nearest `heading_rad`, if within `within_deg` [deg]
+    (a side exit lies elsewhere, along an edge: it says nothing of arrivals at the origin)."""
+    best = min((e for e in island.exits if not e.is_side),
+               key=lambda e: abs(wrap_angle(e.heading_rad - heading_rad)), default=None)
     if best is None or abs(wrap_angle(best.heading_rad - heading_rad)) > math.radians(within_deg):
         return None
     return best

@@ -151,6 +151,48 @@ class ExplorerConfig:
                           "propagated from the last island puts it (11.34: 99 % of 3 degrees "
                           "of freedom) [-]"},
     )
+    side_exits: bool = field(
+        default=True,
+        metadata={"help": "a side opening the robot passes while the hall follower drives an "
+                          "edge becomes an exit of the island the edge left, reached by the "
+                          "edge's strategy up to it and a turn (no island is placed there) "
+                          "[-]"},
+    )
+    side_min_width_m: float = field(
+        default=0.5,
+        metadata={"help": "a side must stay open over this much straight driving to be a side "
+                          "exit [m]"},
+    )
+    side_max_turn_deg: float = field(
+        default=20.0,
+        metadata={"help": "an opening passed while the heading changed more than this (the "
+                          "follower turned there) is not a side exit [deg]"},
+    )
+    side_near_island_m: float = field(
+        default=3.0,
+        metadata={"help": "an opening this close to a known island's origin (dead-reckoned "
+                          "along edges) is that island's, whose own exits cover it [m]"},
+    )
+    side_merge_m: float = field(
+        default=2.0,
+        metadata={"help": "an opening this close to a known side exit (dead-reckoned along "
+                          "edges) whose turn leads the same way is that exit [m]"},
+    )
+    side_merge_deg: float = field(
+        default=45.0,
+        metadata={"help": "two side exits lead the same way when their headings after the "
+                          "turn differ by less than this [deg]"},
+    )
+    side_chain_m: float = field(
+        default=60.0,
+        metadata={"help": "islands up to this route length away are compared for duplicates "
+                          "(their frames dead-reckoned along the edges' strategies) [m]"},
+    )
+    side_search_m: float = field(
+        default=1.5,
+        metadata={"help": "driving to a side exit, the robot looks for the opening from this "
+                          "far before the end of its prefix to this far past it [m]"},
+    )
     exit: ExitConfig = field(
         default_factory=ExitConfig, metadata={"help": "how exits are found at an island"}
     )
@@ -167,6 +209,9 @@ class ExplorerConfig:
         _check_numbers(self, ("exit_cap_s", "door_max_width_m", "door_through_m", "map_wait_s",
                               "look_buffer_s", "revisit_near_m", "revisit_max_mahalanobis2"),
                        ("depart_min_free_m", "lane_snap_m"))
+        _check_numbers(self, ("side_min_width_m", "side_near_island_m", "side_merge_m",
+                              "side_merge_deg", "side_chain_m", "side_search_m"),
+                       ("side_max_turn_deg",))
         if isinstance(self.retries_per_exit, bool) or not isinstance(self.retries_per_exit, int) \
                 or self.retries_per_exit < 0:
             raise ExploreError("ExplorerConfig.retries_per_exit: expected an int >= 0, got "

@@ -10,7 +10,12 @@ has been driven back to the island it left). DONE when no unexplored exit is lef
 
 One `step(sense)` per scan returns who answers that scan (the explorer with (v, w), or the
 builder side: the builder's star or the hall follower) and the requests for the builder and
-the map (`Docked`, `Handover`, `Abort`, blocked exits as `ExitUpdate`).
+the map (`Docked`, `Handover`, `Abort`, blocked exits as `ExitUpdate`, side exits as `NewExit`).
+
+Side exits (`openings`): while the builder side drives, openings beside the way become exits
+of the island left, with the way there as a prefix; such an exit is reached by the map, then
+its prefix (the opening sought by perception near its end), a quarter turn into it and a
+handover by no exit the builder knows, with everything driven from the island as the prefix.
 """
 
 from __future__ import annotations
@@ -25,11 +30,13 @@ from island_msgs_py.geometry import to_frame
 from island_msgs_py.hall_perception import HallPerceptionConfig, perceive
 from island_msgs_py.types import (
     ControlStrategy,
+    Edge,
     Exit,
     ExitState,
     ExitUpdate,
     FloatArray,
     Island,
+    NewExit,
     Pose2D,
     wrap_angle,
 )
@@ -37,6 +44,7 @@ from island_msgs_py.types import (
 from island_mapping.core.builder import BuilderEvent, EventKind
 from island_mapping.core.explore.config import ExploreError, ExplorerConfig
 from island_mapping.core.explore.departure import plan_departure
+from island_mapping.core.explore.openings import OpeningWatch, new_side_exits, side_departure
 from island_mapping.core.explore.planner import (
     Target,
     nearest_unexplored,
@@ -44,7 +52,7 @@ from island_mapping.core.explore.planner import (
     unexplored_count,
 )
 from island_mapping.core.explore.record import MotionRecord
-from island_mapping.core.graph import TopoGraph, reverse_strategy
+from island_mapping.core.graph import TopoGraph, reverse_strategy, strategy_displacement
 from island_mapping.core.route import (
     Command,
     Drive,
@@ -98,7 +106,7 @@ class Abort:
     """Ask the builder to stop following (the explorer takes the robot back)."""
 
 
-Request = Docked | Handover | Abort | ExitUpdate
+Request = Docked | Handover | Abort | ExitUpdate | NewExit
 
 
 @dataclass(frozen=True)
@@ -161,12 +169,14 @@ class Explorer:
         self._seen: deque[tuple[float, FloatArray]] = deque()  # (t [s], echoes, odometry frame)
         self._drove = False  # the explorer answered the last scan
         self._blocked: set[tuple[int, int]] = set()  # marked by us, maybe not yet in the map
+        self._side_sent: dict[int, list[Exit]] = {}  # side exits added by us, per island
         self.state = ExplorerState.WAITING
         self._here: int | None = None
         self._target: tuple[int, int] | None = None
         self.reason = ""
         self.counts = {"exits_explored": 0, "exits_blocked": 0, "lost": 0, "returns": 0,
-                       "arrivals": 0, "untrusted_arrivals": 0}
+                       "arrivals": 0, "untrusted_arrivals": 0, "side_exits_added": 0,
+                       "side_exits_explored": 0}
 
     # ----- inputs -----
 
@@ -242,12 +252,19 @@ class Explorer:
                 return (yield from self._lost(last))
             here = arrived
         self.state = ExplorerState.DEPARTING
-        ok = yield from self._depart(here, target.exit_index)
-        if not ok:
+        ex = _exit(self.graph.get_island(here.island_id), target.exit_index)
+        handed: int | None = target.exit_index
+        if ex.is_side:  # the builder does not know it: a handover by no known exit
+            handed = None
+            assert self._drive is not None
+            if not (yield from side_departure(self._drive, ex, here.origin_odom.theta,
+                                              self.cfg)):
+                self._follower = ControlStrategy(())
+                return (yield from self._return(here, target.exit_index))
+        elif not (yield from self._depart(here, target.exit_index)):
             self._mark_blocked(here.island_id, target.exit_index)
             return here
-        self._requests.append(Handover(here.island_id, target.exit_index,
-                                       self._since_dock.strategy()))
+        self._requests.append(Handover(here.island_id, handed, self._since_dock.strategy()))
         self.state = ExplorerState.HANDED_OVER
         return (yield from self._handed_over(here, target.exit_index))
 
@@ -271,6 +288,10 @@ class Explorer:
     def _map_has(self, island_id: int) -> bool:
         if island_id not in self.graph:
             return False
+        for i, sent in self._side_sent.items():  # the side exits we added
+            have = {e.index for e in self.graph.get_island(i).exits} if i in self.graph else set()
+            if any(e.index not in have for e in sent):
+                return False
         for u in self._awaited:
             if u.island not in self.graph:
                 return False
@@ -371,20 +392,62 @@ class Explorer:
         exit_index None: leaving after getting lost (nothing to block)."""
         self._follower = ControlStrategy(())
         t0 = self._sense.t_s
+        watch = OpeningWatch(self.cfg, self._since_dock.strategy())
+        edges: list[Edge] = []
         while True:
             for e in self._events:
+                edges.extend([e.edge] if e.edge is not None else [])
                 if e.kind is EventKind.HANDED_BACK and e.accepted_island_id is not None:
+                    self._note_openings(here.island_id, watch)
                     if exit_index is not None and e.accepted_island_id == here.island_id:
                         self._mark_blocked(here.island_id, exit_index)  # back: nothing new
                     elif exit_index is not None:
                         self.counts["exits_explored"] += 1
+                        self._side_explored(here.island_id, exit_index, e.accepted_island_id,
+                                            edges)
                     self._awaited.extend(_updates_of(self._events))
                     return self._docked_by_builder(e)
                 if e.kind is EventKind.STOPPED:
+                    self._note_openings(here.island_id, watch)
                     return (yield from self._return(here, exit_index))
+            if self.cfg.side_exits:
+                watch.update(perceive(self._sense.ranges_m, self._sense.angles_rad,
+                                      self.perception), self._follower, self._sense.odom.theta)
             if self._sense.t_s - t0 > self.cfg.exit_cap_s:
                 self._requests.append(Abort())
             yield None
+
+    # ----- side exits -----
+
+    def _note_openings(self, island_id: int, watch: OpeningWatch) -> None:
+        """The openings seen on the way from island_id become its side exits (new ones only)."""
+        openings = watch.finish()
+        if not openings or island_id not in self.graph:
+            return
+        end = strategy_displacement(ControlStrategy(watch.head.steps + watch.last.steps))
+        known = {e.index for e in self.graph.get_island(island_id).exits}
+        pending = tuple(e for e in self._side_sent.get(island_id, []) if e.index not in known)
+        new = new_side_exits(self.graph, island_id, openings, self.cfg, (end,), pending)
+        self._requests.extend(NewExit(island_id, ex) for ex in new)
+        self._side_sent.setdefault(island_id, []).extend(new)
+        self.counts["side_exits_added"] += len(new)
+
+    def _side_explored(self, island_id: int, index: int, reached: int, edges: list[Edge]
+                       ) -> None:
+        """A side exit's trip ended at island `reached`: explored by the edge the builder made
+        from island_id (blocked when it made none); never chosen again."""
+        if index not in {e.index for e in self._side_sent.get(island_id, [])} and not (
+            island_id in self.graph and _exit(self.graph.get_island(island_id), index).is_side
+        ):
+            return
+        self._blocked.add((island_id, index))
+        self.counts["side_exits_explored"] += 1
+        made = [e for e in edges if (e.source, e.target) == (island_id, reached)]
+        if made or self.graph.has_edge(island_id, reached):
+            self._requests.append(ExitUpdate(island_id, index, ExitState.EXPLORED,
+                                             (island_id, reached)))
+        else:
+            self._requests.append(ExitUpdate(island_id, index, ExitState.BLOCKED))
 
     def _docked_by_builder(self, e: BuilderEvent) -> _Here:
         assert e.accepted_island_id is not None

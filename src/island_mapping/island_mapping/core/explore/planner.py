@@ -21,7 +21,8 @@ from island_mapping.core.graph import TopoGraph, reverse_strategy
 @dataclass(frozen=True)
 class Target:
     """An exit to explore: island `island_id`'s exit `exit_index`, reached from the start by
-    `route` (island ids, the start first) of length `distance_m` [m] (edge weights)."""
+    `route` (island ids, the start first) of length `distance_m` [m] (edge weights, plus a side
+    exit's prefix)."""
 
     island_id: int
     exit_index: int
@@ -73,13 +74,15 @@ def route_to(prev: dict[int, int], start: int, goal: int) -> tuple[int, ...]:
 def nearest_unexplored(graph: TopoGraph, start: int, skip: Collection[tuple[int, int]] = ()
                        ) -> Target | None:
     """The nearest (island, exit) with an unexplored exit reachable from `start`, not in
-    `skip`; None when none is left."""
+    `skip` (a side exit is as far as its island plus its prefix's driving); None when none is
+    left."""
     dist, prev = distances_from(graph, start)
     best: tuple[float, int, int] | None = None
     for iid, d in dist.items():
         for e in graph.get_island(iid).exits:
             if e.state is ExitState.UNEXPLORED and (iid, e.index) not in skip:
-                key = (d, iid, e.index)
+                way = e.prefix.length_m if e.prefix is not None else 0.0  # a side exit's
+                key = (d + way, iid, e.index)
                 if best is None or key < best:
                     best = key
     if best is None:

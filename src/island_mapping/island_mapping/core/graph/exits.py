@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Collection, Iterable
 
-from island_msgs_py.types import Edge, Exit, ExitState, ExitUpdate, Island, IslandTypeError
+from island_msgs_py.types import Edge, ExitState, ExitUpdate, Island, IslandTypeError, NewExit
 
 from island_mapping.core.graph.errors import GraphError
 
@@ -70,13 +70,27 @@ def with_exit_update(island: Island, update: ExitUpdate, has_edge: HasEdge) -> I
     return changed
 
 
+def with_new_exit(island: Island, item: NewExit, has_edge: HasEdge) -> Island:
+    """`island` with the exit `item.exit` added (its index must be free; validated)."""
+    where = f"new exit {item.exit.index} of island {island.id}"
+    if any(e.index == item.exit.index for e in island.exits):
+        raise GraphError(f"{where}: the island already has exit {item.exit.index}")
+    try:
+        changed = dataclasses.replace(island, exits=(*island.exits, item.exit))
+    except IslandTypeError as exc:
+        raise GraphError(f"{where}: {exc}") from exc
+    check_explored_edges(changed, has_edge)
+    return changed
+
+
 def reset_exits(island: Island, removed: Collection[tuple[int, int]]) -> Island | None:
     """`island` with the exits explored by a removed edge set back to unexplored; None when no
     exit of it was explored by one of them."""
     if not any(e.edge in removed for e in island.exits):
         return None
     exits = tuple(
-        Exit(e.index, e.heading_rad, e.width_m) if e.edge in removed else e for e in island.exits
+        dataclasses.replace(e, state=ExitState.UNEXPLORED, edge=None) if e.edge in removed
+        else e for e in island.exits
     )
     return dataclasses.replace(island, exits=exits)
 

@@ -19,7 +19,7 @@ from typing import Any
 
 import networkx as nx
 from island_msgs_py.json_io import GraphFormatError
-from island_msgs_py.types import Edge, ExitState, ExitUpdate, Island, Pose2D
+from island_msgs_py.types import Edge, ExitState, ExitUpdate, Island, NewExit, Pose2D
 
 from island_mapping.core.graph import exits, formats
 from island_mapping.core.graph.errors import GraphError
@@ -180,6 +180,14 @@ class TopoGraph:
             raise GraphError(f"exit update: unknown island {update.island}")
         return exits.with_exit_update(self.get_island(update.island), update, self.has_edge)
 
+    def check_new_exit(self, item: NewExit) -> Island:
+        """Validate an exit added to an existing island; returns the island to store."""
+        if not isinstance(item, NewExit):
+            raise GraphError(f"expected a NewExit, got {type(item).__name__}")
+        if item.island not in self._g:
+            raise GraphError(f"new exit: unknown island {item.island}")
+        return exits.with_new_exit(self.get_island(item.island), item, self.has_edge)
+
     def exits_reset_by(
         self, removed: Iterable[tuple[int, int]], dropped: int | None = None
     ) -> list[Island]:
@@ -248,6 +256,12 @@ class TopoGraph:
     def apply_exit_update(self, update: ExitUpdate) -> Island:
         """`set_exit` from an ExitUpdate; returns the changed island."""
         island = self.check_exit_update(update)
+        self._store_island(island)
+        return island
+
+    def add_exit(self, item: NewExit) -> Island:
+        """Add exit `item.exit` to island `item.island` (a side opening); returns the island."""
+        island = self.check_new_exit(item)
         self._store_island(island)
         return island
 

@@ -30,7 +30,7 @@ from enum import StrEnum
 from pathlib import Path
 
 from island_msgs_py.json_io import GraphFormatError, fsync_dir
-from island_msgs_py.types import Edge, Exit, ExitState, ExitUpdate, Island
+from island_msgs_py.types import Edge, Exit, ExitState, ExitUpdate, Island, NewExit
 
 from island_mapping.core.graph import store_schema as sch
 from island_mapping.core.graph.config import GraphStoreConfig
@@ -136,7 +136,8 @@ def read_rows(conn: sqlite3.Connection) -> tuple[list[Island], list[Edge]]:
     conn.execute("BEGIN")
     try:
         exits: dict[int, list[Exit]] = {}
-        for row in conn.execute(sch.SELECT_EXITS):
+        cols = ", ".join(sch.exits_select(conn))
+        for row in conn.execute(f"SELECT {cols} FROM exits ORDER BY island, idx"):
             island_id, e = sch.exit_from_row(row)
             exits.setdefault(island_id, []).append(e)
         islands = [sch.island_from_row(row, exits.pop(row[0], []))
@@ -277,6 +278,8 @@ class GraphStore:
                 raise GraphStoreError(str(path), "an empty database, not a graph store")
             if not new:  # checked before anything is written to it
                 _check_integrity(conn, path, self.config.full_integrity_check)
+                if not read_only:
+                    sch.migrate_schema(conn, conn.execute("PRAGMA user_version").fetchone()[0])
                 islands, edges = read_rows(conn)
                 self.graph = TopoGraph.from_parts(islands, edges)
             if not read_only:
@@ -392,6 +395,13 @@ class GraphStore:
                          (update.island, update.index))
             conn.execute(sch.INSERT_EXIT, sch.exit_row(update.island, new))
         return self.graph.apply_exit_update(update)
+
+    def add_exit(self, item: NewExit) -> Island:
+        """Add an exit to an island (one transaction); returns the changed island."""
+        self.graph.check_new_exit(item)
+        with self._transaction() as conn:
+            conn.execute(sch.INSERT_EXIT, sch.exit_row(item.island, item.exit))
+        return self.graph.add_exit(item)
 
     def set_exit(self, island_id: int, index: int, state: ExitState,
                  edge: tuple[int, int] | None = None) -> Island:

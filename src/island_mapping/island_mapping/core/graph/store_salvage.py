@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from island_msgs_py.json_io import fsync_dir
-from island_msgs_py.types import Edge, Exit, Island
+from island_msgs_py.types import Edge, Exit, ExitState, Island
 
 from island_mapping.core.graph import store_schema as sch
 from island_mapping.core.graph.errors import GraphError
@@ -87,7 +87,7 @@ def _consistent(islands: list[Island], edges: list[Edge],
             if x.edge is not None and x.edge not in pairs:
                 report.lost.append(f"island {i.id} exit {x.index}: its edge {x.edge} is lost, "
                                    "set back to unexplored")
-                x = Exit(x.index, x.heading_rad, x.width_m)
+                x = dataclasses.replace(x, state=ExitState.UNEXPLORED, edge=None)
             exits.append(x)
         fixed_islands.append(dataclasses.replace(i, exits=tuple(exits)))
     exits_of = {i.id: {x.index for x in i.exits} for i in fixed_islands}
@@ -105,7 +105,7 @@ def _consistent(islands: list[Island], edges: list[Edge],
 
 def _read(conn: sqlite3.Connection, src: Path, report: SalvageReport) -> TopoGraph:
     exits: dict[int, list[Exit]] = {}
-    for island_id, x in _keep(_scan(conn, "exits", sch.EXIT_COLUMNS, report),
+    for island_id, x in _keep(_scan(conn, "exits", sch.exits_select(conn), report),
                               sch.exit_from_row, report):
         exits.setdefault(island_id, []).append(x)
     islands_rows = list(_scan(conn, "islands", sch.ISLAND_COLUMNS, report))

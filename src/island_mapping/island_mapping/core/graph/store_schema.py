@@ -20,6 +20,7 @@ from island_msgs_py.types import (
     ControlStrategy,
     Edge,
     Exit,
+    ExitSide,
     ExitState,
     Island,
     IslandTypeError,
@@ -31,7 +32,7 @@ from island_msgs_py.types import (
 DATABASE = "graph.sqlite3"  # the store's file in its directory (plus -wal/-shm while in use)
 STORE_FORMAT = "islands-graph-store"
 APPLICATION_ID = 0x49534C47  # "ISLG" in the SQLite header: this file is an islands graph store
-SCHEMA_VERSION = 1  # PRAGMA user_version of the schema below
+SCHEMA_VERSION = 2  # PRAGMA user_version of the schema below (1: exits without prefix/side)
 SEGMENT_DTYPE = "<f8"  # segments BLOB: N x 4 little-endian float64, row-major [m]
 SEGMENT_ROW_BYTES = 4 * 8
 
@@ -78,6 +79,8 @@ CREATE TABLE exits (
     edge_source INTEGER,
     edge_target INTEGER,
     crc INTEGER NOT NULL,
+    prefix TEXT,
+    side TEXT,
     PRIMARY KEY (island, idx),
     FOREIGN KEY (edge_source, edge_target) REFERENCES edges (source, target)
         DEFERRABLE INITIALLY DEFERRED
@@ -89,7 +92,13 @@ ISLAND_COLUMNS = ("id", "frame_id", "model_type", "r", "built_at_s", "segments",
 EDGE_COLUMNS = ("source", "target", "strategy", "weight", "length_m", "expected_error_m",
                 "source_exit", "target_exit", "crc")
 EXIT_COLUMNS = ("island", "idx", "heading_rad", "width_m", "state", "edge_source",
-                "edge_target", "crc")
+                "edge_target", "prefix", "side", "crc")
+EXIT_COLUMNS_V1 = tuple("NULL" if c in ("prefix", "side") else c for c in EXIT_COLUMNS)
+"""A schema-1 store's exits read as plain exits (no prefix, no side)."""
+MIGRATE_1_TO_2 = ("ALTER TABLE exits ADD COLUMN prefix TEXT",
+                  "ALTER TABLE exits ADD COLUMN side TEXT")
+"""A schema-1 store made a schema-2 one: its rows stay valid (a plain exit's checksum covers
+the first seven values, as in schema 1)."""
 
 
 class RowError(ValueError):
@@ -141,9 +150,15 @@ def island_row(island: Island) -> tuple[Any, ...]:
 
 
 def exit_row(island_id: int, e: Exit) -> tuple[Any, ...]:
+    """An exits row; a plain exit's checksum covers its first seven values (as in schema 1),
+    a side exit's also its prefix and side."""
     src, dst = (None, None) if e.edge is None else e.edge
-    return _with_crc((island_id, e.index, float(e.heading_rad), float(e.width_m),
-                      e.state.value, src, dst))
+    values = (island_id, e.index, float(e.heading_rad), float(e.width_m), e.state.value, src,
+              dst)
+    if e.prefix is None or e.side is None:
+        return (*values, None, None, row_crc(values))
+    side = (str(e.prefix), e.side.value)
+    return (*values, *side, row_crc(values + side))
 
 
 def edge_row(edge: Edge) -> tuple[Any, ...]:
@@ -158,11 +173,15 @@ def edge_row(edge: Edge) -> tuple[Any, ...]:
 def exit_from_row(row: Sequence[Any]) -> tuple[int, Exit]:
     """(island id, exit) of an exits row; RowError naming the row when it is not valid."""
     what = f"exits row (island {row[0]!r}, index {row[1]!r})"
-    island, idx, heading, width, state, src, dst = _checked(row, what)
+    plain = row[7] is None and row[8] is None
+    values = _checked((*row[:7], row[9]) if plain else row, what)
+    island, idx, heading, width, state, src, dst = values[:7]
     try:
         edge = None if src is None and dst is None else (src, dst)
-        return int(island), Exit(idx, heading, width, ExitState(state), edge)
-    except (IslandTypeError, ValueError, TypeError) as exc:
+        prefix = None if plain else ControlStrategy.parse(row[7])
+        side = None if plain else ExitSide(row[8])
+        return int(island), Exit(idx, heading, width, ExitState(state), edge, prefix, side)
+    except (IslandTypeError, ValueError, TypeError, AttributeError) as exc:
         raise RowError(f"{what}: {exc}") from exc
 
 
@@ -188,6 +207,23 @@ def edge_from_row(row: Sequence[Any]) -> Edge:
         return Edge(src, dst, ControlStrategy.parse(strategy), weight, length, error, sx, tx)
     except (IslandTypeError, ValueError, TypeError, AttributeError) as exc:
         raise RowError(f"{what}: {exc}") from exc
+
+
+def exits_select(conn: sqlite3.Connection) -> tuple[str, ...]:
+    """The exits columns to select: a schema-1 table has no prefix and side (NULLs)."""
+    have = {r[1] for r in conn.execute("PRAGMA table_info(exits)")}
+    return EXIT_COLUMNS if "prefix" in have else EXIT_COLUMNS_V1
+
+
+def migrate_schema(conn: sqlite3.Connection, version: int) -> None:
+    """A writable store of an older schema brought to SCHEMA_VERSION (one transaction)."""
+    if version >= SCHEMA_VERSION:
+        return
+    conn.execute("BEGIN IMMEDIATE")
+    for statement in MIGRATE_1_TO_2:
+        conn.execute(statement)
+    conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+    conn.execute("COMMIT")
 
 
 def create_schema(conn: sqlite3.Connection, meta: dict[str, str]) -> None:

@@ -38,6 +38,9 @@ def exit_metadata(e: Exit) -> dict[str, Any]:
                             "state": e.state.value}
     if e.edge is not None:
         meta["edge"] = list(e.edge)
+    if e.prefix is not None and e.side is not None:  # a side exit: its way and turn
+        meta["prefix"] = str(e.prefix)
+        meta["side"] = e.side.value
     return meta
 
 
