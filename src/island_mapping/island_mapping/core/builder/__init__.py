@@ -9,6 +9,8 @@ Pure decision logic (numpy only, no ROS). Modules, each one job:
 - `checks`: the localization check and registrations onto a model;
 - `recognition`: the Recognizer of known islands (revisits) and its link graph (`links`), with
   the correlative place search (`places`) as a strategy for a lost robot;
+- `uncertainty`: the full covariance of the robot's pose relative to a known island's origin
+  (loop-closure candidates and the gate's Mahalanobis distance);
 - `follow`: when an attempt may start while the follower drives;
 - `motion`: turns, straight drives, docking and looks (no decisions);
 - `diagnostics`: counts, refusals, probes;

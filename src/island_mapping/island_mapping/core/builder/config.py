@@ -296,6 +296,11 @@ class RevisitConfig:
                           "within the caps instead of refused (needs unique_island and a "
                           "revisit gate with topological evidence) [bool]"},
     )
+    fit_sigma_m: float = field(
+        default=0.3, metadata={"help": "a recognised pose's own position error, added to the "
+                               "odometric estimate's covariance in its Mahalanobis distance [m]"})
+    fit_sigma_deg: float = field(
+        default=3.0, metadata={"help": "and its heading error [deg]"})
 
     def __post_init__(self) -> None:
         _check("RevisitConfig", self, (
@@ -303,7 +308,7 @@ class RevisitConfig:
             "heading_step_deg", "inlier_m", "history_m", "max_range_m", "max_residual_m",
             "ambiguity_m", "max_dock_m", "dock_tol_m", "dock_tol_deg", "strategy_min_go_m",
             "star_search_sigmas", "star_max_residual_m", "star_search_max_m",
-            "star_search_max_deg", "rival_max_m", "rival_step_m",
+            "star_search_max_deg", "rival_max_m", "rival_step_m", "fit_sigma_m", "fit_sigma_deg",
         ), strict=True)
         _check("RevisitConfig", self, (
             "search_max_deg", "path_clearance_m", "min_inlier_fraction", "min_loop_m",

@@ -74,16 +74,18 @@ class Ledger:
         return edge
 
     def add_island(self, island: Island, origin_odom: Pose2D, odom_cov: FloatArray,
-                   edge: Edge | None, epsilon_m: float, heading_sigma_rad: float) -> None:
+                   edge: Edge | None, epsilon_m: float, heading_sigma_rad: float,
+                   cov_at: Pose2D | None = None) -> None:
         """A new island with its origin at origin_odom (odometry frame; the odometry's
-        covariance odom_cov then), reached from the last island by `edge` (epsilon_m, and
-        heading_sigma_rad of odometry since the last island, are the link's sigmas)."""
+        covariance odom_cov taken at odometric pose cov_at, default the origin), reached from
+        the last island by `edge` (epsilon_m, and heading_sigma_rad of odometry since the
+        last island, are the link's sigmas)."""
         if edge is not None:
             self.edges.append(edge)
         self.islands.append(island)
         self.island_origins_odom[island.id] = origin_odom
         self.link_from_last(island.id, origin_odom, epsilon_m, heading_sigma_rad)
-        self.recognizer.remember(island.id, origin_odom, odom_cov)
+        self.recognizer.remember(island.id, origin_odom, odom_cov, cov_at)
         self.last_island = island
 
     def revisit(self, island_id: int, strategy: ControlStrategy, path_m: float, end: Pose2D,

@@ -430,7 +430,7 @@ class IslandBuilder:
         updates = exit_updates(edge, None if edge is None else (edge.source, edge.target),
                                self._departure, None if arrival is None else arrival.index)
         book.add_island(island, origin, att.anchor_cov, edge, att.epsilon_m,
-                        self._track.rel.heading_sigma_rad)
+                        self._track.rel.heading_sigma_rad, cov_at=att.anchor)
         if self._track.star is not None:  # epsilon restarts from the island origin
             self._track.rel.p = self._track.star.p.copy()
         att.outcome = EventKind.ISLAND_ACCEPTED

@@ -12,6 +12,7 @@ Refusals are counted in `Diagnostics.revisit_refusals`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -26,6 +27,12 @@ from island_mapping.core.builder.diagnostics import Diagnostics, Refusal
 from island_mapping.core.builder.geometry import drive_clear, from_frame, to_frame
 from island_mapping.core.builder.links import Link, LinkGraph
 from island_mapping.core.builder.places import PlaceSearch
+from island_mapping.core.builder.uncertainty import (
+    between_covariance,
+    in_frame,
+    mahalanobis2,
+    relative_covariance,
+)
 from island_mapping.core.lines import point_segment_distance, thin_evenly
 from island_mapping.core.localize import localize
 
@@ -45,8 +52,9 @@ class Recognition:
     pose: Pose2D  # the robot in the island frame [m, rad]
     residual_m: float
     inlier_fraction: float
-    # How far the recognised pose lies from the odometric estimate, in its sigmas: the squared
-    # Mahalanobis distance over (x, y, theta) [-]; None when not computed.
+    # How far the recognised pose lies from the odometric estimates, in their sigmas: the
+    # largest squared Mahalanobis distance over (x, y, theta) under each estimate's full
+    # covariance (`Recognizer.spreads`) [-]; None when not computed.
     mahalanobis2: float | None = None
     # The direction the robot came from, in the island frame (set by the builder before its
     # revisit gate; None: unknown) [rad].
@@ -97,15 +105,20 @@ class Recognizer:
         self.config = config
         self.diagnostics = diagnostics if diagnostics is not None else Diagnostics()
         self._known: dict[int, tuple[Pose2D, FloatArray]] = {}
+        # Where the robot was (odometry) when each island's covariance was taken.
+        self._cov_at: dict[int, Pose2D] = {}
         self._places: dict[int, PlaceSearch] = {}
         self.links = LinkGraph()
 
     # ----- what is known -----
 
-    def remember(self, island_id: int, origin_odom: Pose2D, odom_cov: FloatArray) -> None:
+    def remember(self, island_id: int, origin_odom: Pose2D, odom_cov: FloatArray,
+                 cov_at: Pose2D | None = None) -> None:
         """Island island_id's origin is at origin_odom in the odometry frame now, with the
-        odometry's covariance odom_cov (3x3)."""
+        odometry's covariance odom_cov (3x3) taken at odometric pose cov_at (default: at
+        the origin; a star's anchor, a few metres off, for a new island)."""
         self._known[island_id] = (origin_odom, odom_cov)
+        self._cov_at[island_id] = origin_odom if cov_at is None else cov_at
 
     def known(self, island_id: int) -> tuple[Pose2D, FloatArray] | None:
         """(origin in the odometry frame, odometry covariance then) as last known, or None."""
@@ -186,8 +199,8 @@ class Recognizer:
         rec = self.recognize(pts, anchor, snap, islands, star=True)
         if rec is None:
             return None
-        now = rec.pose.compose(odom.relative_to(anchor))
-        return Recognition(rec.island_id, now, rec.residual_m, rec.inlier_fraction)
+        # The distance from the estimate was measured at the anchor, where the points are.
+        return dataclasses.replace(rec, pose=rec.pose.compose(odom.relative_to(anchor)))
 
     def recognize(
         self, points: FloatArray, at: Pose2D, snap: PoseSnapshot, islands: Sequence[Island],
@@ -224,7 +237,7 @@ class Recognizer:
                 continue
             fit = self._search(cand.island, points, est, win)
             if fit is not None:
-                found.append(_with_distance(fit, est, cand))
+                found.append(self._with_distance(fit, at, snap))
         if not found:
             return None
         best = min(found, key=lambda f: f.residual_m)
@@ -264,6 +277,45 @@ class Recognizer:
                             snap.epsilon_m + chain.sigma_m + sig_rel_th * reach,
                             sig_rel_th + chain.sigma_rad))
         return out
+
+    def spreads(self, island_id: int, snap: PoseSnapshot) -> list[tuple[Pose2D, FloatArray]]:
+        """The estimates of `estimates` with full covariances: (island island_id's origin in
+        the odometry frame, 3x3 covariance of the robot's pose in the island frame by it).
+        By odometry: the odometry's covariance since the origin was last known, relative to
+        it (`uncertainty.relative_covariance`). Through the links: the robot's relative
+        covariance since the last island's origin, and the chain's sigmas (isotropic in
+        position: a link keeps the sigmas it was measured with)."""
+        origin, _ = self._known[island_id]
+        out = [(origin, in_frame(self._since(island_id, snap), origin.theta))]
+        last = snap.last_island_id
+        if last is not None and last in self._known and last != island_id:
+            chain = self.links.chain(last, island_id)
+            if chain is not None:
+                base = self._known[last][0]
+                robot = in_frame(self._since(last, snap), base.theta)
+                link = np.diag([chain.sigma_m ** 2, chain.sigma_m ** 2, chain.sigma_rad ** 2])
+                cov = between_covariance(chain.pose, link, snap.odom.relative_to(base), robot)
+                out.append((base.compose(chain.pose), cov))
+        return out
+
+    def _since(self, island_id: int, snap: PoseSnapshot) -> FloatArray:
+        """The covariance of the robot's odometric pose now relative to where it was when
+        island island_id's origin was last known (odometry axes)."""
+        _, cov0 = self._known[island_id]
+        at = self._cov_at.get(island_id, self._known[island_id][0])
+        return relative_covariance(at, cov0, snap.odom, snap.odom_cov)
+
+    def _with_distance(self, fit: Recognition, at: Pose2D, snap: PoseSnapshot) -> Recognition:
+        """`fit` (the robot at odometric pose `at`) with its squared Mahalanobis distance:
+        the largest over the island's estimates (`spreads`), each under its full covariance plus the
+        fit's own error (fit_sigma_m / _deg): a true recognition lies within every honest
+        estimate's uncertainty."""
+        rc = self.config.revisit
+        floor = np.diag([rc.fit_sigma_m ** 2, rc.fit_sigma_m ** 2,
+                         math.radians(rc.fit_sigma_deg) ** 2])
+        d2 = max((mahalanobis2(fit.pose, at.relative_to(origin), cov, floor)
+                  for origin, cov in self.spreads(fit.island_id, snap)), default=None)
+        return dataclasses.replace(fit, mahalanobis2=d2)
 
     def _candidates(self, snap: PoseSnapshot, islands: Sequence[Island]) -> Iterator[_Candidate]:
         """Known islands a recognition may match, with their best odometric origin estimate
@@ -424,11 +476,3 @@ class Recognizer:
                 continue
             fits.append(Recognition(island.id, p, float(res.residual_m), inl))
         return fits
-
-
-def _with_distance(fit: Recognition, est: Pose2D, cand: _Candidate) -> Recognition:
-    """`fit` with its squared Mahalanobis distance from the odometric estimate `est` (the
-    candidate's position and heading sigmas, isotropic in position)."""
-    d2 = ((fit.pose.x - est.x) ** 2 + (fit.pose.y - est.y) ** 2) / max(cand.sigma_m, 1e-6) ** 2
-    d2 += (wrap_angle(fit.pose.theta - est.theta) / max(cand.sigma_rad, 1e-6)) ** 2
-    return Recognition(fit.island_id, fit.pose, fit.residual_m, fit.inlier_fraction, d2)
