@@ -86,7 +86,8 @@ def test_add_parameters_round_trip_and_errors() -> None:
         p = deserialize_message(serialize_message(p), Parameter)
         assert cv.parameter_to_item(p) == item
     wrong = Parameter(name="node", value=ParameterValue(type=ParameterType.PARAMETER_STRING))
-    with pytest.raises(GraphFormatError, match=r"parameter\.name: expected 'island' or 'edge'"):
+    with pytest.raises(GraphFormatError, match=r"parameter\.name: expected 'island', 'edge', "
+                                               r"'exit' or 'new_exit', got 'node'"):
         cv.parameter_to_item(wrong)
     num = Parameter(name="edge", value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE))
     with pytest.raises(GraphFormatError, match=r"parameter\.value: expected a string"):
