@@ -50,8 +50,9 @@ import math
 import os
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
+from enum import StrEnum
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -148,6 +149,20 @@ def segments_from_json(value: Any, path: str) -> np.ndarray:
     return out
 
 
+_E = TypeVar("_E", bound=StrEnum)
+
+
+def _enum(cls: type[_E], value: Any, path: str, what: str) -> _E:
+    """The member of string enum `cls` named by `value`; a GraphFormatError naming `what`
+    and the known values otherwise."""
+    text = jc.str_(value, path)
+    try:
+        return cls(text)
+    except ValueError:
+        known = ", ".join(m.value for m in cls)
+        raise GraphFormatError(path, f"unknown {what} {text!r} (known: {known})") from None
+
+
 def exit_to_dict(e: Exit) -> dict[str, Any]:
     d: dict[str, Any] = {
         "index": e.index,
@@ -160,15 +175,6 @@ def exit_to_dict(e: Exit) -> dict[str, Any]:
         d["prefix"] = str(e.prefix)
         d["side"] = e.side.value
     return d
-
-
-def _exit_side(value: Any, path: str) -> ExitSide:
-    text = jc.str_(value, path)
-    try:
-        return ExitSide(text)
-    except ValueError:
-        known = ", ".join(s.value for s in ExitSide)
-        raise GraphFormatError(path, f"unknown side {text!r} (known: {known})") from None
 
 
 def side_fields(obj: Mapping[str, Any], path: str
@@ -184,16 +190,7 @@ def side_fields(obj: Mapping[str, Any], path: str
         prefix = ControlStrategy.parse(jc.str_(obj["prefix"], f"{path}.prefix"))
     except IslandTypeError as exc:
         raise GraphFormatError(f"{path}.prefix", f"not a strategy: {exc}") from exc
-    return prefix, _exit_side(obj["side"], f"{path}.side")
-
-
-def _exit_state(value: Any, path: str) -> ExitState:
-    text = jc.str_(value, path)
-    try:
-        return ExitState(text)
-    except ValueError:
-        known = ", ".join(s.value for s in ExitState)
-        raise GraphFormatError(path, f"unknown exit state {text!r} (known: {known})") from None
+    return prefix, _enum(ExitSide, obj["side"], f"{path}.side", "side")
 
 
 def _edge_ref(value: Any, path: str) -> tuple[int, int] | None:
@@ -213,7 +210,7 @@ def exit_from_dict(d: Any, path: str = "exit") -> Exit:
     width = jc.length(obj["width_m"], f"{path}.width_m")
     if width <= 0.0:
         raise GraphFormatError(f"{path}.width_m", f"must be > 0, got {width}")
-    state = _exit_state(obj["state"], f"{path}.state")
+    state = _enum(ExitState, obj["state"], f"{path}.state", "exit state")
     edge = _edge_ref(obj.get("edge"), f"{path}.edge")
     prefix, side = side_fields(obj, path)
     try:
@@ -257,22 +254,13 @@ def island_to_dict(island: Island) -> dict[str, Any]:
     return d
 
 
-def _model_type(value: Any, path: str) -> ModelType:
-    mt = jc.str_(value, path)
-    try:
-        return ModelType(mt)
-    except ValueError:
-        known = ", ".join(m.value for m in ModelType)
-        raise GraphFormatError(path, f"unknown model type {mt!r} (known: {known})") from None
-
-
 def island_from_dict(d: Any, path: str = "island", version: int = FORMAT_VERSION) -> Island:
     """An island of a document of `version` (version 1 has no `exits`)."""
     keys = _ISLAND_KEYS if version >= EXITS_SINCE_VERSION else _ISLAND_KEYS_V1
     obj = jc.obj(d, path, keys, _ISLAND_REQUIRED)
     island_id = jc.island_id(obj["id"], f"{path}.id")
     frame_id = jc.str_(obj.get("frame_id", ""), f"{path}.frame_id")
-    model_type = _model_type(obj["model_type"], f"{path}.model_type")
+    model_type = _enum(ModelType, obj["model_type"], f"{path}.model_type", "model type")
     model = jc.obj(obj["model"], f"{path}.model", {"segments"}, {"segments"})
     segments = segments_from_json(model["segments"], f"{path}.model.segments")
     origin = obj.get("origin_truth")
@@ -357,7 +345,7 @@ def exit_update_from_dict(d: Any, path: str = "exit") -> ExitUpdate:
     obj = jc.obj(d, path, _EXIT_UPDATE_KEYS, _EXIT_UPDATE_REQUIRED)
     island = jc.island_id(obj["island"], f"{path}.island")
     index = jc.int_(obj["exit"], f"{path}.exit", 0, MAX_EXIT_INDEX)
-    state = _exit_state(obj["state"], f"{path}.state")
+    state = _enum(ExitState, obj["state"], f"{path}.state", "exit state")
     edge = _edge_ref(obj.get("edge"), f"{path}.edge")
     try:
         return ExitUpdate(island, index, state, edge)
