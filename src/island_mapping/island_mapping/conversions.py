@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from island_msgs_py.errors import InputError
-from island_msgs_py.types import ControlStrategy, ExitUpdate, Island, IslandTypeError
+from island_msgs_py.types import ControlStrategy, ExitUpdate, Island, IslandTypeError, NewExit
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from std_msgs.msg import String
 
@@ -123,12 +123,14 @@ def event_from_dict(d: Any, path: str = "event") -> BuilderEvent:
 # ----------------------------------------------------------------------------- map items
 
 
-def graph_item_to_parameter(item: GraphItem) -> Parameter:
-    """One `topo_graph/add` item: an island, an edge or an exit's new state."""
+def graph_item_to_parameter(item: GraphItem | NewExit) -> Parameter:
+    """One `topo_graph/add` item: an island, an edge, an exit's new state or a new exit."""
     if isinstance(item, Island):
         return cv.island_to_parameter(item)
     if isinstance(item, ExitUpdate):
         return cv.exit_update_to_parameter(item)
+    if isinstance(item, NewExit):
+        return cv.new_exit_to_parameter(item)
     return cv.edge_to_parameter(item)
 
 

@@ -59,7 +59,6 @@ from island_mapping.core.builder import CommandMode
 from island_mapping.core.explore import Explorer, ExplorerConfig
 from island_mapping.core.graph import GraphError, TopoGraph
 from island_mapping.core.route import NavigateConfig, Sense
-from island_msgs_py import conversions as cv
 
 NODE_NAME = "explorer_node"
 BASE_FRAME = "base_link"  # the robot frame cmd_vel is in (after frame_prefix)
@@ -253,9 +252,8 @@ class ExplorerNode(Node):
         to the map, in order."""
         to_builder = [mcv.request_to_parameter(r) for r in requests
                       if not isinstance(r, ExitUpdate | NewExit)]
-        exits = [cv.exit_update_to_parameter(r) if isinstance(r, ExitUpdate)
-                 else cv.new_exit_to_parameter(r)
-                 for r in requests if isinstance(r, ExitUpdate | NewExit)]
+        exits = [mcv.graph_item_to_parameter(r) for r in requests
+                 if isinstance(r, ExitUpdate | NewExit)]
         for cli, params in ((self.builder_cli, to_builder), (self.add_cli, exits)):
             if params:
                 fut = cli.call_async(SetParameters.Request(parameters=params))
