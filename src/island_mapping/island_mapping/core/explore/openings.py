@@ -17,7 +17,7 @@ route (`chained_frames`).
 
 from __future__ import annotations
 
-import heapq
+import itertools
 import math
 from collections.abc import Generator
 from dataclasses import dataclass
@@ -35,6 +35,7 @@ from island_msgs_py.types import (
 )
 
 from island_mapping.core.explore.config import ExplorerConfig
+from island_mapping.core.explore.planner import distances_from, route_to
 from island_mapping.core.graph import TopoGraph, normalize_strategy, strategy_displacement
 from island_mapping.core.route import (
     Command,
@@ -126,26 +127,23 @@ class OpeningWatch:
 def chained_frames(graph: TopoGraph, start: int, max_m: float) -> dict[int, Pose2D]:
     """Each island's frame in `start`'s frame, dead-reckoned along the edges' strategies (an
     edge ends at its target's origin facing its theta 0), for islands up to `max_m` of route
-    (edge weights) away; the nearest route wins."""
+    (edge weights) away; the nearest route wins (`planner.distances_from`), and between two
+    islands the lightest edge."""
     if start not in graph:
         return {}
-    nbrs: dict[int, list[tuple[float, int, Pose2D]]] = {i: [] for i in graph.island_ids()}
+    dist, prev = distances_from(graph, start)
+    steps: dict[tuple[int, int], tuple[float, Pose2D]] = {}
     for e in graph.iter_edges():
         t = strategy_displacement(e.strategy)
-        nbrs[e.source].append((e.weight, e.target, t))
-        nbrs[e.target].append((e.weight, e.source, t.inverse()))
+        for key, move in (((e.source, e.target), t), ((e.target, e.source), t.inverse())):
+            if key not in steps or e.weight < steps[key][0]:
+                steps[key] = (e.weight, move)
     frames = {start: Pose2D(0.0, 0.0, 0.0)}
-    dist = {start: 0.0}
-    heap = [(0.0, start)]
-    while heap:
-        d, i = heapq.heappop(heap)
-        if d > dist[i]:
-            continue
-        for w, j, t in sorted(nbrs[i], key=lambda n: (n[0], n[1])):
-            nd = d + w
-            if nd <= max_m and nd < dist.get(j, math.inf) - 1e-12:
-                dist[j], frames[j] = nd, frames[i].compose(t)
-                heapq.heappush(heap, (nd, j))
+    for goal in (i for i, d in dist.items() if d <= max_m):
+        route = route_to(prev, start, goal)
+        for a, b in itertools.pairwise(route):
+            if b not in frames:
+                frames[b] = frames[a].compose(steps[(a, b)][1])
     return frames
 
 
