@@ -17,9 +17,11 @@ from island_mapping.core.explore import (
     ExitEvidence,
     ExploreError,
     ExplorerConfig,
+    NoveltyConfig,
     arrival_exit,
     explorer_hooks,
     find_exits,
+    known_space_costs,
     nearest_unexplored,
     route_edges,
     unexplored_count,
@@ -31,6 +33,7 @@ from island_msgs_py.types import (
     ControlStrategy,
     Edge,
     Exit,
+    ExitSide,
     ExitState,
     Island,
     LineModel,
@@ -140,6 +143,49 @@ def test_ties_go_to_the_lower_island_id() -> None:
                              [_edge(0, 2, 4.0), _edge(0, 1, 4.0)])
     t = nearest_unexplored(g, 0)
     assert t is not None and t.island_id == 1
+
+
+def _corridor_map() -> TopoGraph:
+    """Island 1 lies 10 m ahead of island 0 (edge 'Go 1000'). Island 0's exit 1 looks down
+    that corridor (known space); its side exit 2 opens to the left 5 m along it and island 1's
+    exit 1 to the left of island 1 (both into space the map does not know)."""
+    s = ControlStrategy.parse
+    return TopoGraph.from_parts(
+        [_island(0, (_explored(0, (0, 1)), Exit(1, 0.0, 1.0),
+                     Exit(2, math.pi / 2, 1.0, prefix=s("Go 500"), side=ExitSide.LEFT))),
+         _island(1, (Exit(0, math.pi, 1.0, ExitState.EXPLORED, (0, 1)),
+                     Exit(1, math.pi / 2, 1.0)))],
+        [Edge(0, 1, s("Go 1000"), 10.0, 10.0)])
+
+
+def test_exits_into_known_space_go_last() -> None:
+    """Nearest first takes island 0's exit 1, which looks down the corridor the edge drove;
+    with its known-space cost the side exit 5 m away goes first, then island 1's exit, and
+    the known one still goes before exploration ends."""
+    g = _corridor_map()
+    cfg = NoveltyConfig()
+    costs = known_space_costs(g, 0, cfg)
+    assert costs == {(0, 1): cfg.penalty_m}
+    assert known_space_costs(g, 1, cfg) == costs  # the same space from the other island
+    plain = nearest_unexplored(g, 0)
+    assert plain is not None and (plain.island_id, plain.exit_index) == (0, 1)
+    order = []
+    skip: set[tuple[int, int]] = set()
+    while (t := nearest_unexplored(g, 0, skip, costs)) is not None:
+        order.append((t.island_id, t.exit_index, t.distance_m))
+        skip.add((t.island_id, t.exit_index))
+    assert order == [(0, 2, pytest.approx(5.0)), (1, 1, pytest.approx(10.0)),
+                     (0, 1, pytest.approx(0.0))]
+
+
+def test_a_look_point_beyond_the_radius_is_new_space() -> None:
+    g = _corridor_map()
+    assert known_space_costs(g, 0, NoveltyConfig(lookahead_m=4.0, radius_m=1.0)) == {
+        (0, 1): NoveltyConfig().penalty_m}
+    # island 1's exit looks 4 m to the left of it: 4 m from the edge's path at island 1
+    assert (1, 1) in known_space_costs(g, 0, NoveltyConfig(radius_m=4.5))
+    with pytest.raises(ExploreError, match="NoveltyConfig.radius_m"):
+        NoveltyConfig(radius_m=float("nan"))
 
 
 def test_bad_input_names_what_is_wrong() -> None:

@@ -2,10 +2,11 @@
 
 Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public API:
 
-- `ExitConfig`, `ExplorerConfig`, `ExploreError` (config);
+- `ExitConfig`, `NoveltyConfig`, `ExplorerConfig`, `ExploreError` (config);
 - `ExitEvidence`, `find_exits`, `arrival_exit`, `gate`, `free_lanes` (exits: where free space
   leads away from an island, in its frame);
 - `Target`, `nearest_unexplored`, `route_edges`, `unexplored_count` (planner);
+- `known_space_costs` (novelty: the planner's extra cost of exits into space the map knows);
 - `plan_departure`, `DeparturePlan` (departure through an exit's gate);
 - `Explorer`, `ExplorerCommand`, `ExplorerState`, `ExplorerStatus`, `Docked`, `Handover`,
   `Abort` (mission: one step per scan);
@@ -13,7 +14,12 @@ Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public
   closure's topological evidence).
 """
 
-from island_mapping.core.explore.config import ExitConfig, ExploreError, ExplorerConfig
+from island_mapping.core.explore.config import (
+    ExitConfig,
+    ExploreError,
+    ExplorerConfig,
+    NoveltyConfig,
+)
 from island_mapping.core.explore.departure import DeparturePlan, plan_departure
 from island_mapping.core.explore.exits import (
     ExitEvidence,
@@ -32,6 +38,7 @@ from island_mapping.core.explore.mission import (
     ExplorerStatus,
     Handover,
 )
+from island_mapping.core.explore.novelty import known_space_costs
 from island_mapping.core.explore.planner import (
     Target,
     nearest_unexplored,
@@ -42,7 +49,7 @@ from island_mapping.core.explore.planner import (
 __all__ = [
     "Abort", "DeparturePlan", "Docked", "ExitConfig", "ExitEvidence", "ExploreError",
     "Explorer", "ExplorerCommand", "ExplorerConfig", "ExplorerState", "ExplorerStatus",
-    "Handover", "Target", "arrival_agrees", "arrival_exit", "explorer_hooks", "find_exits",
-    "free_lanes", "gate", "nearest_unexplored", "plan_departure", "route_edges",
-    "unexplored_count",
+    "Handover", "NoveltyConfig", "Target", "arrival_agrees", "arrival_exit", "explorer_hooks",
+    "find_exits", "free_lanes", "gate", "known_space_costs", "nearest_unexplored",
+    "plan_departure", "route_edges", "unexplored_count",
 ]

@@ -94,6 +94,46 @@ class ExitConfig:
 
 
 @dataclass(frozen=True)
+class NoveltyConfig:
+    """Exits into space the map already knows go last (`core.explore.novelty`)."""
+
+    enabled: bool = field(
+        default=False,
+        metadata={"help": "rank exits whose look point the map already knows after the others "
+                          "(false: nearest first only)"},
+    )
+    lookahead_m: float = field(
+        default=4.0,
+        metadata={"help": "an exit's look point lies this far ahead of it (a side exit's: of "
+                          "its opening, after the turn) [m]"},
+    )
+    radius_m: float = field(
+        default=2.0,
+        metadata={"help": "a look point within this of an island origin, an edge's driven path "
+                          "or a side exit's opening is known space [m]"},
+    )
+    penalty_m: float = field(
+        default=200.0,
+        metadata={"help": "extra route length the planner charges an exit into known space [m]"},
+    )
+    chain_m: float = field(
+        default=200.0,
+        metadata={"help": "islands up to this route length away are placed (their frames "
+                          "dead-reckoned along the edges' strategies); exits of islands farther "
+                          "away cost nothing extra [m]"},
+    )
+    spacing_m: float = field(
+        default=0.5,
+        metadata={"help": "an edge's driven path is sampled every this far [m]"},
+    )
+
+    def __post_init__(self) -> None:
+        _check_numbers(self, ("lookahead_m", "radius_m", "chain_m", "spacing_m"), ("penalty_m",))
+        if not isinstance(self.enabled, bool):
+            raise ExploreError(f"NoveltyConfig.enabled: expected a bool, got {self.enabled!r}")
+
+
+@dataclass(frozen=True)
 class ExplorerConfig:
     """The explorer's mission (`core.explore.mission`)."""
 
@@ -195,6 +235,10 @@ class ExplorerConfig:
     )
     exit: ExitConfig = field(
         default_factory=ExitConfig, metadata={"help": "how exits are found at an island"}
+    )
+    novelty: NoveltyConfig = field(
+        default_factory=NoveltyConfig,
+        metadata={"help": "which exits the planner takes last: those into known space"},
     )
     revisit: RevisitConfig = field(
         default_factory=lambda: RevisitConfig(

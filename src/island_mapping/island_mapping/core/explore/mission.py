@@ -44,6 +44,7 @@ from island_msgs_py.types import (
 from island_mapping.core.builder import BuilderEvent, EventKind
 from island_mapping.core.explore.config import ExploreError, ExplorerConfig
 from island_mapping.core.explore.departure import plan_departure
+from island_mapping.core.explore.novelty import known_space_costs
 from island_mapping.core.explore.openings import OpeningWatch, new_side_exits, side_departure
 from island_mapping.core.explore.planner import (
     Target,
@@ -233,7 +234,9 @@ class Explorer:
             self.state = ExplorerState.CHOOSING
             self._here = here.island_id
             yield from self._await_map(here.island_id)
-            target = nearest_unexplored(self.graph, here.island_id, self._blocked)
+            extra = (known_space_costs(self.graph, here.island_id, self.cfg.novelty)
+                     if self.cfg.novelty.enabled else None)
+            target = nearest_unexplored(self.graph, here.island_id, self._blocked, extra)
             if target is None:
                 self.state, self.reason = ExplorerState.DONE, "no unexplored exit left"
                 self._target = None

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 
 from island_msgs_py.types import Edge, ExitState
@@ -71,23 +71,24 @@ def route_to(prev: dict[int, int], start: int, goal: int) -> tuple[int, ...]:
     return tuple(reversed(out))
 
 
-def nearest_unexplored(graph: TopoGraph, start: int, skip: Collection[tuple[int, int]] = ()
-                       ) -> Target | None:
+def nearest_unexplored(graph: TopoGraph, start: int, skip: Collection[tuple[int, int]] = (),
+                       extra_m: Mapping[tuple[int, int], float] | None = None) -> Target | None:
     """The nearest (island, exit) with an unexplored exit reachable from `start`, not in
-    `skip` (a side exit is as far as its island plus its prefix's driving); None when none is
-    left."""
+    `skip` (a side exit is as far as its island plus its prefix's driving; an exit in
+    `extra_m` that much farther, e.g. `novelty.known_space_costs`); None when none is left."""
+    extra = extra_m if extra_m is not None else {}
     dist, prev = distances_from(graph, start)
-    best: tuple[float, int, int] | None = None
+    best: tuple[float, int, int, float] | None = None
     for iid, d in dist.items():
         for e in graph.get_island(iid).exits:
             if e.state is ExitState.UNEXPLORED and (iid, e.index) not in skip:
                 way = e.prefix.length_m if e.prefix is not None else 0.0  # a side exit's
-                key = (d + way, iid, e.index)
+                key = (d + way + extra.get((iid, e.index), 0.0), iid, e.index, d + way)
                 if best is None or key < best:
                     best = key
     if best is None:
         return None
-    d, iid, idx = best
+    _, iid, idx, d = best
     return Target(iid, idx, route_to(prev, start, iid), d)
 
 
