@@ -21,6 +21,9 @@ from island_mapping.evaluation.world_eval import (
 from island_msgs_py.types import (
     ControlStrategy,
     Edge,
+    Exit,
+    ExitSide,
+    ExitState,
     Island,
     LineModel,
     ModelType,
@@ -70,6 +73,30 @@ def test_coverage_and_islands_per_place_on_a_t_junction() -> None:
     assert d["islands_off_places"] == 1 and d["covered_junctions"] == 1
     assert d["missed_closures"] == 1  # the west end's second island: a loop not closed
     assert [p["covered"] for p in d["place_list"]].count(True) == 2
+
+
+def test_a_side_exit_where_the_map_puts_it_makes_a_place_known_not_covered() -> None:
+    """One island at the T's west end facing east. Its side exit 8 m along opens at the
+    junction (10, 1): the junction is known to the map, not covered. A blocked side exit
+    there, or one whose prefix ends 4 m past the junction, makes nothing known."""
+    world = load_world("t_junction")  # places: junction (10, 1), ends (1, 1), (19, 1), (10, 11)
+    places = world_places(world)
+
+    def side(k: int, go_cm: int, state: ExitState = ExitState.UNEXPLORED) -> Exit:
+        return Exit(k, math.pi / 2, 1.0, state, prefix=ControlStrategy.parse(f"Go {go_cm}"),
+                    side=ExitSide.LEFT)
+
+    def evaluated(*exits: Exit) -> dict[str, object]:
+        isl = Island(0, LineModel(), ModelType.LINE, 1.0, 0.0, origin_truth=Pose2D(2.0, 1.0, 0.0),
+                     exits=exits)
+        return evaluate_map(world, places, TopoGraph.from_parts([isl], []), []).to_dict()
+
+    d = evaluated(side(0, 800))
+    assert (d["covered_places"], d["known_places"]) == (1, 2)
+    assert (d["covered_junctions"], d["known_junctions"]) == (0, 1)
+    assert [p["known"] for p in d["place_list"]].count(True) == 2
+    assert evaluated(side(0, 800, ExitState.BLOCKED))["known_places"] == 1
+    assert evaluated(side(0, 1200))["known_places"] == 1
 
 
 def test_a_place_behind_a_wall_is_not_covered() -> None:

@@ -4,7 +4,8 @@ Reads what `islands explore --out DIR` wrote (graph.json: islands with their tru
 summary.json: builder events with the robot's true pose, the followed routes, the start pose)
 and writes to --out (default: DIR):
 
-  evaluation.json   places, coverage (all, junctions), islands per place, false merges,
+  evaluation.json   places, coverage (all, junctions), places the map knows (covered, or a
+                    side exit opens there), islands per place, false merges,
                     cycle rank of the map and of the world, route success and length ratios
   places.png        the world's places, covered (green) or missed (red), and island origins
 
@@ -44,7 +45,8 @@ from island_mapping.evaluation.world_eval import (
     route_pairs_from_summary,
 )
 
-SUMMARY_FIGURES = ("places", "junctions", "coverage", "junction_coverage", "islands",
+SUMMARY_FIGURES = ("places", "junctions", "coverage", "junction_coverage", "known_places",
+                   "islands",
                    "islands_per_place", "false_merges", "map_cycle_rank", "world_cycle_rank",
                    "route_success_rate", "route_length_ratio_mean")
 """The figures printed on stdout (evaluation.json has all of them)."""

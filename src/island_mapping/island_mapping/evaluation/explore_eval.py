@@ -33,7 +33,8 @@ SENSOR_RATE_HZ = 10.0
 """Scans per simulated second in both harnesses (the truth path has one pose per scan)."""
 
 HEADLINE = ("places", "covered_places", "coverage", "junctions", "covered_junctions",
-            "junction_coverage", "islands", "islands_per_place", "islands_off_places",
+            "junction_coverage", "known_places", "known_junctions", "islands",
+            "islands_per_place", "islands_off_places",
             "false_merges", "missed_closures", "revisits", "map_cycle_rank",
             "world_cycle_rank", "routes", "route_success_rate", "route_length_ratio_mean",
             "route_length_ratio_max")

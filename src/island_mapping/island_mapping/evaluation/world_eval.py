@@ -6,6 +6,13 @@ robot's true pose at each, and the island pairs whose routes were followed. Figu
 
 - **coverage**: a place is covered when an island's true origin lies within 2.5 m of it with
   no wall between them; overall and over junctions;
+- **places the map knows** (beside coverage, not instead of it): a place is known when it is
+  covered, or when a side exit of the map (not blocked) opens within 2.5 m of it, with no wall
+  between, where the map puts the opening: its island's true origin composed with the exit's
+  prefix driven ideally (`openings.exit_pose`), so the odometry's error along the prefix
+  counts. Islands stand only where eq. 3 and R allow; a junction beside a corridor, which R
+  does not tell from the corridor with this sonar, is in the map as a side exit (a strategy
+  prefix and a turn, the paper's way of encoding a route through an unmapped junction);
 - **islands per place**: each island belongs to its nearest such place (if any); islands at
   places / covered places (1.0: no place has a duplicate); islands at no place are counted;
   each duplicate is a **missed loop closure** (`missed_closures`);
@@ -33,13 +40,14 @@ import networkx as nx
 import numpy as np
 from island_msgs_py.errors import InputError
 from island_msgs_py.json_io import GraphFormatError, pose_from_dict
-from island_msgs_py.types import Pose2D
+from island_msgs_py.types import ExitState, Pose2D
 from island_sim.core.freespace import AllowedFn, FreeSpaceError, known_free_allowed
 from island_sim.core.images import read_pgm, read_png
 from island_sim.core.importers import ImageImportConfig
 from island_sim.core.places import WorldPlaceKind, WorldPlaces
 from island_sim.core.world import World, read_structured
 
+from island_mapping.core.explore.openings import exit_pose
 from island_mapping.core.graph import GraphError, TopoGraph
 from island_mapping.evaluation.routes import with_reverse_edges
 
@@ -122,6 +130,12 @@ class MapEvaluation:
     world_cycle_rank: int
     routes: tuple[RouteLength, ...]
     place_xy: tuple[tuple[str, float, float], ...]  # per place: kind, x [m], y [m]
+    known: tuple[bool, ...] = ()  # per place: covered, or a side exit opens there
+
+    @property
+    def known_flags(self) -> tuple[bool, ...]:
+        """Per place: known to the map (covered when `known` was not measured)."""
+        return self.known if self.known else self.covered
 
     @property
     def junction_flags(self) -> tuple[bool, ...]:
@@ -184,6 +198,9 @@ class MapEvaluation:
             "covered_junctions": sum(c and j for c, j in zip(self.covered, self.junction_flags,
                                                              strict=True)),
             "coverage": num(self.coverage),
+            "known_places": sum(self.known_flags),
+            "known_junctions": sum(k and j for k, j in zip(self.known_flags, self.junction_flags,
+                                                           strict=True)),
             "junction_coverage": num(self.junction_coverage),
             "islands": self.islands,
             "islands_at_places": self.islands_at_places,
@@ -208,8 +225,9 @@ class MapEvaluation:
                 for r in self.routes
             ],
             "place_list": [
-                {"kind": kind, "x": round(x, 2), "y": round(y, 2), "covered": cov}
-                for (kind, x, y), cov in zip(self.place_xy, self.covered, strict=True)
+                {"kind": kind, "x": round(x, 2), "y": round(y, 2), "covered": cov, "known": kn}
+                for (kind, x, y), cov, kn in zip(self.place_xy, self.covered, self.known_flags,
+                                                 strict=True)
             ],
             "island_place": {str(k): v for k, v in sorted(self.island_place.items())},
         }
@@ -253,6 +271,20 @@ def covered_places(world: World, places: WorldPlaces, origins: Iterable[Pose2D],
         out.append(any(math.hypot(x - p.x_m, y - p.y_m) <= radius_m
                        and _in_sight(world, (p.x_m, p.y_m), (x, y)) for x, y in pts))
     return tuple(out)
+
+
+def side_exit_openings(graph: TopoGraph) -> list[Pose2D]:
+    """Where the map puts each side exit's opening that is not blocked, in the world: its
+    island's true origin composed with the prefix driven ideally (islands without a true
+    origin are skipped)."""
+    out = []
+    for i in graph.islands():
+        if i.origin_truth is None:
+            continue
+        for e in i.exits:
+            if e.prefix is not None and e.side is not None and e.state is not ExitState.BLOCKED:
+                out.append(i.origin_truth.compose(exit_pose(e.prefix, e.side)))
+    return out
 
 
 def revisits_from_events(events: Iterable[Mapping[str, Any]]) -> list[Revisit]:
@@ -339,10 +371,12 @@ def evaluate_map(world: World, places: WorldPlaces, graph: TopoGraph,
         raise WorldEvalError("the map's islands have no true origins (origin_truth): it was "
                              "not built in simulation")
     revisits = revisits_from_events(events)
+    covered = covered_places(world, places, origins.values(), c.cover_radius_m)
+    by_exits = covered_places(world, places, side_exit_openings(graph), c.cover_radius_m)
     return MapEvaluation(
         places=len(places.places),
         junctions=len(places.junctions),
-        covered=covered_places(world, places, origins.values(), c.cover_radius_m),
+        covered=covered,
         islands=len(graph),
         island_place=island_places(world, places, origins, c.cover_radius_m),
         false_merges=tuple(false_merges(origins, revisits, c.false_merge_m)),
@@ -352,6 +386,7 @@ def evaluate_map(world: World, places: WorldPlaces, graph: TopoGraph,
         routes=tuple(route_lengths(graph, places, origins, route_pairs, c.path_snap_m,
                                    c.min_route_m)),
         place_xy=tuple((p.kind.value, p.x_m, p.y_m) for p in places.places),
+        known=tuple(a or b for a, b in zip(covered, by_exits, strict=True)),
     )
 
 
