@@ -170,7 +170,8 @@ def follow_route(
     edges = _edges(graph, route)
     src = graph.get_island(route[0])
     true_start = start if start is not None else _random_start(src, c, gen)
-    robot = SimRobot(setup.world, true_start, gen, setup.robot, setup.odometry)
+    robot = SimRobot(setup.world, true_start, gen, setup.robot, setup.odometry,
+                     track_covariance=False)
     sim = SimRunner(setup, robot, gen, c)
     judge = _JudgedByTruth(graph, robot, c)
     islands = {i.id: i for i in graph.islands()}
@@ -219,7 +220,8 @@ def follow_route_global_odometry(
     src = graph.get_island(route[0])
     true_start = start if start is not None else _random_start(src, c, gen)
     robot = SimRobot(
-        setup.world, true_start, gen, setup.robot, setup.odometry, odom_start=origins_odom[route[0]]
+        setup.world, true_start, gen, setup.robot, setup.odometry,
+        odom_start=origins_odom[route[0]], track_covariance=False,
     )
     sim = SimRunner(setup, robot, gen, c)
     results: list[EdgeResult] = []
