@@ -19,7 +19,7 @@ import numpy.typing as npt
 from island_msgs_py.errors import InputError
 from island_msgs_py.types import FloatArray, Pose2D, wrap_angle
 
-from island_sim.core.clearance import WallClearance
+from island_sim.core.near_walls import WallClearance
 from island_sim.core.world import World
 
 # Below this |dtheta| [rad] the arc update uses its series form (avoids 0/0 for straight moves).
