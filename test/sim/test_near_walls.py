@@ -1,6 +1,6 @@
-"""island_sim.core.near_walls against the whole world: WallClearance (the simulated robot's
-per-step wall distance) against geometry.clearance_m, NearbyRayCaster against the world's ray
-caster; and a SimRobot that keeps no covariance."""
+"""The walls near a moving robot against the whole world: WallClearance (the simulated robot's
+per-step wall distance) against geometry.clearance_m, raycast.NearbyRayCaster (its sonar's) against
+the world's ray caster; and a SimRobot that keeps no covariance."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 from island_msgs_py.geometry import clearance_m
+from island_msgs_py.raycast import NearbyRayCaster
 from island_msgs_py.types import Pose2D
-from island_sim.core.near_walls import NearbyRayCaster, WallClearance
+from island_sim.core.near_walls import WallClearance
 from island_sim.core.robot import RobotError, SimRobot
 from island_sim.core.sonar import SonarConfig, SonarModel
 from island_sim.core.world_loader import load_world

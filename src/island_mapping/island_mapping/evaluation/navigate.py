@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 from typing import TypeVar, cast
 
 import numpy as np
+from island_msgs_py.raycast import NearbyRayCaster
 from island_sim.core.hall_follower import HallFollowerConfig
-from island_sim.core.near_walls import NearbyRayCaster
 from island_sim.core.robot import OdometryConfig, RobotConfig, SimRobot
 from island_sim.core.sonar import SonarConfig, SonarModel
 from island_sim.core.world import World
@@ -46,7 +46,7 @@ class SimRunner:
         self.world, self.robot, self.rng, self.cfg = setup.world, robot, rng, cfg
         self.sonar = SonarModel(setup.sonar)
         # The walls in the sonar's reach of the robot: the world's echoes, cast at a fraction
-        # of the cost (island_sim.core.near_walls).
+        # of the cost (island_msgs_py.raycast).
         self.caster = NearbyRayCaster(setup.world, setup.sonar.range_max_m)
         self.dt = 1.0 / cfg.physics_rate_hz
         scan = self.sonar.scan(self.caster, robot.true_pose, rng)
