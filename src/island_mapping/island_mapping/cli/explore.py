@@ -221,8 +221,7 @@ def run(args: argparse.Namespace) -> int:
     _write_figures(world, rec, out, title)
     t0 = time.monotonic()
     setup = rec.sim_setup if rec.sim_setup is not None else SimSetup(world=world)
-    routes = _route_summary(graph, setup, rec.events, args.routes, args.seed,
-                            args.route_workers)
+    routes = _route_summary(graph, setup, rec.events, args.routes, args.seed, args.route_workers)
     origins = {i.id: i.origin_truth for i in graph.islands() if i.origin_truth is not None}
     summary = {
         "world": world.name,

@@ -148,8 +148,7 @@ def explore_by_exits(
     gen = rng if rng is not None else np.random.default_rng(0)
     world = setup.world
     robot = SimRobot(world, start or world.start_pose, gen, setup.robot, setup.odometry)
-    sonar = SonarModel(setup.sonar)
-    near = NearbyRayCaster(world, setup.sonar.range_max_m)  # the world's echoes, cheaper
+    sonar, near = SonarModel(setup.sonar), NearbyRayCaster(world, setup.sonar.range_max_m)
     fcfg = straight_first(setup.follower) if follow_straight else setup.follower
     follower_rng = np.random.default_rng(int(gen.integers(2**31)))
     follower = HallFollower(fcfg, follower_rng)
