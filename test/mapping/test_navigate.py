@@ -120,6 +120,21 @@ def test_evaluate_routes_uses_both_directions_and_compares_with_the_baseline() -
         assert r.route == b.route
 
 
+def test_route_evaluation_in_worker_processes_equals_the_sequential_one() -> None:
+    world = l_world()
+    graph, setup = make_graph(world), SimSetup(world)
+    seq = evaluate_routes(graph, setup, 3, np.random.default_rng(7), ODOM_AT_EXPLORATION)
+    # The sequential run has built the world's ray-casting index: the workers get the world
+    # without it (it holds a lock) and build their own.
+    par = evaluate_routes(graph, setup, 3, np.random.default_rng(7), ODOM_AT_EXPLORATION,
+                          workers=2)
+    assert par == seq
+    assert len(seq.pairs) == 3
+    with pytest.raises(NavigateError, match="workers"):
+        evaluate_routes(graph, setup, 3, np.random.default_rng(7), ODOM_AT_EXPLORATION,
+                        workers=0)
+
+
 def test_bad_inputs_are_named() -> None:
     world = l_world()
     graph = make_graph(world)

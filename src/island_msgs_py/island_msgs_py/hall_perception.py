@@ -11,6 +11,7 @@ lines, the hallway's direction in the robot frame.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -80,48 +81,83 @@ def fit_wall(pts: FloatArray, perp_m: float, tol_m: float) -> tuple[float, float
     return float(np.min(np.abs(pts[:, 1]))), None
 
 
+@dataclass(frozen=True)
+class _Bearings:
+    """What a scan's perception needs of its bearings alone (computed once per ring).
+
+    a: bearings wrapped to [-pi, pi] [rad]; cos_a, sin_a: their cosines and sines; ahead: the
+    transducer nearest straight ahead; per side (left, right): the transducer nearest its
+    perpendicular, |sin| of its bearing, and which transducers lie within the side's sector.
+    """
+
+    a: FloatArray
+    cos_a: FloatArray
+    sin_a: FloatArray
+    ahead: int
+    perp: tuple[int, int]
+    perp_sin: tuple[float, float]
+    in_sector: tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]
+
+
+@functools.lru_cache(maxsize=8)
+def _bearings(raw: bytes, side_half_angle_deg: float) -> _Bearings:
+    """`_Bearings` of the float64 bearings [rad] whose bytes are `raw` (checked finite)."""
+    a = np.frombuffer(raw, dtype=np.float64)
+    a = np.arctan2(np.sin(a), np.cos(a))
+    perp, perp_sin, in_sector = [], [], []
+    for sign in (1.0, -1.0):
+        d = a - sign * math.pi / 2.0
+        off = np.abs(np.arctan2(np.sin(d), np.cos(d)))
+        k = int(np.argmin(off))
+        perp.append(k)
+        perp_sin.append(abs(math.sin(a[k])))
+        in_sector.append(off <= math.radians(side_half_angle_deg))
+    cos_a, sin_a = np.cos(a), np.sin(a)
+    for arr in (a, cos_a, sin_a, *in_sector):
+        arr.setflags(write=False)  # shared by every later scan of the ring
+    return _Bearings(a, cos_a, sin_a, int(np.argmin(np.abs(a))), (perp[0], perp[1]),
+                     (perp_sin[0], perp_sin[1]), (in_sector[0], in_sector[1]))
+
+
 def perceive(
     ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike, config: HallPerceptionConfig
 ) -> Perception:
     """Summarize one scan (ranges from the robot centre [m], bearings [rad], robot frame)."""
     c = config
     r = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
-    a = np.asarray(angles_rad, dtype=np.float64).reshape(-1)
-    if r.shape != a.shape or r.size == 0:
+    raw = np.ascontiguousarray(angles_rad, dtype=np.float64).reshape(-1)
+    if r.shape != raw.shape or r.size == 0:
         raise PerceptionError(
-            f"update: ranges ({r.size}) and angles ({a.size}) must be non-empty and match"
+            f"update: ranges ({r.size}) and angles ({raw.size}) must be non-empty and match"
         )
-    if not np.all(np.isfinite(a)):
+    if not np.all(np.isfinite(raw)):
         raise PerceptionError("update: angles_rad contains a NaN or infinite bearing")
+    b = _bearings(raw.tobytes(), float(c.side_half_angle_deg))
     r = np.where(np.isnan(r) | (r <= 0), np.inf, r)
-    a = np.arctan2(np.sin(a), np.cos(a))
     ok = np.isfinite(r)
     rr = np.where(ok, r, 0.0)
-    x = np.where(ok, rr * np.cos(a), np.nan)
-    y = np.where(ok, rr * np.sin(a), np.nan)
+    # Echo points; 0 (not NaN) where there is no echo, and every use below is masked by `ok`.
+    x = rr * b.cos_a
+    y = rr * b.sin_a
 
-    ahead = int(np.argmin(np.abs(a)))
-    front_free = float(r[ahead])
+    front_free = float(r[b.ahead])
     front = front_free
-    in_path = ok & (np.nan_to_num(x) > 0)
-    in_path &= np.abs(np.nan_to_num(y)) <= c.robot_radius_m + c.path_margin_m
+    in_path = ok & (x > 0)
+    in_path &= np.abs(y) <= c.robot_radius_m + c.path_margin_m
     if np.any(in_path):
         front = min(front, float(np.min(x[in_path])))
 
-    def side(sign: float) -> tuple[bool, float, float | None]:
-        d = a - sign * math.pi / 2.0
-        off = np.abs(np.arctan2(np.sin(d), np.cos(d)))
-        perp = int(np.argmin(off))
-        perp_m = float(r[perp] * abs(math.sin(a[perp])))
+    def side(k: int) -> tuple[bool, float, float | None]:
+        perp_m = float(r[b.perp[k]] * b.perp_sin[k])
         is_open = not perp_m <= c.open_side_m
-        sel = ok & (off <= math.radians(c.side_half_angle_deg))
-        sel &= np.abs(np.nan_to_num(y)) <= c.open_side_m
+        sel = ok & b.in_sector[k]
+        sel &= np.abs(y) <= c.open_side_m
         pts = np.stack([x[sel], y[sel]], axis=1)
         dist, ang = fit_wall(pts, math.inf if is_open else perp_m, c.fit_tolerance_m)
         return is_open, dist, ang
 
-    l_open, l_dist, l_ang = side(1.0)
-    r_open, r_dist, r_ang = side(-1.0)
+    l_open, l_dist, l_ang = side(0)
+    r_open, r_dist, r_ang = side(1)
     wall_angle = None  # only two parallel walls are trusted as a hallway's direction
     if l_ang is not None and r_ang is not None and abs(l_ang - r_ang) <= PARALLEL_RAD:
         wall_angle = 0.5 * (l_ang + r_ang)

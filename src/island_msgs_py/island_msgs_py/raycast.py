@@ -5,7 +5,8 @@ angles [rad]. `raycast` is the brute-force caster; `SegmentIndex` answers the sa
 for bit with a spatial index (fast in worlds of thousands of walls); `RayCaster` is what both
 it and the simulator's `World` offer (segments and a `raycast` method). The simulator's sonar and
 worlds, the distinctiveness measure, the Fisher score, localization and place classification
-all cast their rays here.
+all cast their rays here. `NearbyRayCaster` serves rays of a bounded range from a moving
+point (the simulated sonar ring) from the few walls within that range, with the same answers.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from island_msgs_py.errors import InputError
+from island_msgs_py.geometry import point_segment_distance
 from island_msgs_py.types import FloatArray
 
 # Rays closer than this to a segment's supporting line count as parallel (no hit) [m].
@@ -297,6 +299,89 @@ class SegmentIndex:
                 for k, row in zip(missing[s : s + step].tolist(), overlap, strict=True):
                     cache[k] = np.flatnonzero(row).astype(np.int64)
         return [cache[k] for k in keys.tolist()]
+
+
+NEARBY_REACH_M = 1.0
+"""`NearbyRayCaster`'s walls serve ray origins within this of where they were gathered [m]
+(about 20 sensor periods of a driving robot)."""
+# Slack on the gathering radius, far above the round-off of the distances it compares [m].
+_NEARBY_SLACK_M = 1e-6
+
+
+class NearbyRayCaster:
+    """A `RayCaster` over `caster`'s walls for rays of at most `max_range_m` [m] from origins
+    near each other (a sonar ring on a moving robot); the answers are `caster`'s bit for bit.
+
+    A wall hit at most max_range_m from an origin within r of the centre c lies within
+    max_range_m + r of c: those walls are gathered at c, in their original order (a tie still
+    goes to the lowest index), with their directions and unit normals, and rays are cast against
+    them by brute force (which the index equals). Rays that may go farther, or origins beyond r
+    of c after gathering anew, go to `caster`.
+    """
+
+    def __init__(self, caster: RayCaster, max_range_m: float,
+                 reach_m: float = NEARBY_REACH_M) -> None:
+        self._caster = caster
+        self._max_range_m = float(max_range_m)
+        self._reach_m = float(reach_m)
+        self._centre: FloatArray | None = None
+        self._index: npt.NDArray[np.int64] = np.zeros(0, dtype=np.int64)
+        self._p = self._e = self._n = np.zeros((0, 2))
+
+    @property
+    def segments(self) -> FloatArray:
+        return self._caster.segments
+
+    def raycast(self, origins: npt.ArrayLike, angles_rad: npt.ArrayLike,
+                max_range_m: float = np.inf) -> RayHits:
+        """First hits of rays from `origins` (M, 2) [m] along `angles_rad` (M,); see `raycast`."""
+        o, a = _prepare_rays(origins, angles_rad)
+        if not max_range_m <= self._max_range_m or a.shape[0] == 0:
+            return self._caster.raycast(o, a, max_range_m)
+        if not self._covers(o):
+            self._gather(o.mean(axis=0))
+            if not self._covers(o):  # origins spread wider than the reach
+                return self._caster.raycast(o, a, max_range_m)
+        m = a.shape[0]
+        dist = np.full(m, np.inf)
+        seg = np.full(m, -1, dtype=np.int64)
+        cos_inc, normal = np.zeros(m), np.zeros(m)
+        if self._index.size == 0:
+            return RayHits(dist, seg, cos_inc, normal)
+        tj, j = _nearest_hits(self._p, self._e, o, a)
+        hit = np.isfinite(tj) & (tj <= max_range_m)
+        if np.any(hit):
+            # As _finish_hits, from the gathered walls' unit normals.
+            jh = j[hit]
+            dist[hit], seg[hit] = tj[hit], self._index[jh]
+            n = self._n[jh]
+            u = np.stack([np.cos(a[hit]), np.sin(a[hit])], axis=1)
+            dot = np.sum(n * u, axis=1)
+            n = np.where(dot[:, None] > 0, -n, n)
+            cos_inc[hit] = np.abs(dot)
+            normal[hit] = np.arctan2(n[:, 1], n[:, 0])
+        return RayHits(dist, seg, cos_inc, normal)
+
+    def _covers(self, o: FloatArray) -> bool:
+        c = self._centre
+        if c is None:
+            return False
+        return bool(np.all(np.hypot(o[:, 0] - c[0], o[:, 1] - c[1]) <= self._reach_m))
+
+    def _gather(self, centre: FloatArray) -> None:
+        self._centre = centre
+        segs = np.asarray(self._caster.segments, dtype=np.float64)
+        if segs.shape[0] == 0:
+            self._index = np.zeros(0, dtype=np.int64)
+            return
+        dist = point_segment_distance(centre[None, :], segs)[0]
+        self._index = np.flatnonzero(
+            dist <= self._max_range_m + self._reach_m + _NEARBY_SLACK_M).astype(np.int64)
+        near = segs[self._index]
+        self._p = np.ascontiguousarray(near[:, 0:2])
+        self._e = near[:, 2:4] - self._p
+        d = near[:, 2:4] - near[:, 0:2]
+        self._n = np.stack([-d[:, 1], d[:, 0]], axis=1) / np.linalg.norm(d, axis=1)[:, None]
 
 
 def _sector_boxes(r: float) -> tuple[FloatArray, FloatArray]:

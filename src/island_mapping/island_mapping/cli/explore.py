@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -79,6 +80,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="simulated exploration time [s] (default 900)")
     parser.add_argument("--routes", type=COUNT, default=20,
                         help="random island pairs for the route-following evaluation (0 = skip)")
+    parser.add_argument("--route-workers", type=COUNT, default=0,
+                        help="processes following the evaluation's routes (default 0 = one per "
+                             "CPU); the figures do not depend on it")
     parser.add_argument("--no-record", action="store_true", help="do not write run_bag/")
     parser.add_argument("--wall-timeout", type=POSITIVE_SECONDS, default=3600.0,
                         help="give up after this much wall time [s]")
@@ -127,12 +131,12 @@ def _counts(events: list[dict[str, Any]]) -> dict[str, int]:
 
 
 def _route_summary(graph: TopoGraph, setup: SimSetup, events: list[dict[str, Any]],
-                   n_pairs: int, seed: int) -> dict[str, Any]:
+                   n_pairs: int, seed: int, workers: int) -> dict[str, Any]:
     if n_pairs <= 0:
         return {"skipped": "--routes 0"}
     try:
-        ev = evaluate_routes(graph, setup, n_pairs,
-                             np.random.default_rng(seed), _origins_odom(events))
+        ev = evaluate_routes(graph, setup, n_pairs, np.random.default_rng(seed),
+                             _origins_odom(events), workers=workers or os.cpu_count() or 1)
     except NavigateError as exc:
         return {"skipped": str(exc)}
     return {
@@ -217,7 +221,7 @@ def run(args: argparse.Namespace) -> int:
     _write_figures(world, rec, out, title)
     t0 = time.monotonic()
     setup = rec.sim_setup if rec.sim_setup is not None else SimSetup(world=world)
-    routes = _route_summary(graph, setup, rec.events, args.routes, args.seed)
+    routes = _route_summary(graph, setup, rec.events, args.routes, args.seed, args.route_workers)
     origins = {i.id: i.origin_truth for i in graph.islands() if i.origin_truth is not None}
     summary = {
         "world": world.name,

@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+from island_msgs_py.raycast import NearbyRayCaster
 from island_msgs_py.types import Edge, FloatArray, Island, Pose2D
 from island_sim.core.hall_follower import HallFollower
 from island_sim.core.robot import SimRobot
@@ -66,6 +67,7 @@ def explore(
     world = setup.world
     robot = SimRobot(world, start or world.start_pose, gen, setup.robot, setup.odometry)
     sonar = SonarModel(setup.sonar)
+    near = NearbyRayCaster(world, setup.sonar.range_max_m)  # the world's echoes, cheaper
     follower = HallFollower(setup.follower, np.random.default_rng(int(gen.integers(2**31))))
     builder = IslandBuilder(builder_cfg)
     steps = max(1, round(physics_rate_hz / sensor_rate_hz))
@@ -76,7 +78,7 @@ def explore(
     builder.on_ground_truth(robot.true_pose)
     for _ in range(int(sim_s * sensor_rate_hz)):
         t = robot.time_s
-        ranges = sonar.scan(world, robot.true_pose, gen)
+        ranges = sonar.scan(near, robot.true_pose, gen)
         builder.set_strategy(follower.strategy())
         builder.on_scan(t, ranges, sonar.angles_rad)
         cmd = builder.command(t)

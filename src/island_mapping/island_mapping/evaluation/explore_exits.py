@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from island_msgs_py.raycast import NearbyRayCaster
 from island_msgs_py.types import ExitUpdate, FloatArray, Island, NewExit, Pose2D, wrap_angle
 from island_sim.core.hall_follower import HallFollower, HallFollowerConfig, TurnPolicy
 from island_sim.core.robot import SimRobot
@@ -147,7 +148,7 @@ def explore_by_exits(
     gen = rng if rng is not None else np.random.default_rng(0)
     world = setup.world
     robot = SimRobot(world, start or world.start_pose, gen, setup.robot, setup.odometry)
-    sonar = SonarModel(setup.sonar)
+    sonar, near = SonarModel(setup.sonar), NearbyRayCaster(world, setup.sonar.range_max_m)
     fcfg = straight_first(setup.follower) if follow_straight else setup.follower
     follower_rng = np.random.default_rng(int(gen.integers(2**31)))
     follower = HallFollower(fcfg, follower_rng)
@@ -167,7 +168,7 @@ def explore_by_exits(
     blocked = False
     for _ in range(int(sim_s * 10.0)):
         t = robot.time_s
-        ranges = sonar.scan(world, robot.true_pose, gen)
+        ranges = sonar.scan(near, robot.true_pose, gen)
         builder.set_strategy(follower.strategy())
         builder.on_scan(t, ranges, sonar.angles_rad)
         cmd = builder.command(t)

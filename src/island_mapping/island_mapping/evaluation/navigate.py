@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import TypeVar, cast
 
 import numpy as np
+from island_msgs_py.raycast import NearbyRayCaster
 from island_sim.core.hall_follower import HallFollowerConfig
 from island_sim.core.robot import OdometryConfig, RobotConfig, SimRobot
 from island_sim.core.sonar import SonarConfig, SonarModel
@@ -44,8 +45,11 @@ class SimRunner:
                  cfg: NavigateConfig) -> None:
         self.world, self.robot, self.rng, self.cfg = setup.world, robot, rng, cfg
         self.sonar = SonarModel(setup.sonar)
+        # The walls in the sonar's reach of the robot: the world's echoes, cast at a fraction
+        # of the cost (island_msgs_py.raycast).
+        self.caster = NearbyRayCaster(setup.world, setup.sonar.range_max_m)
         self.dt = 1.0 / cfg.physics_rate_hz
-        scan = self.sonar.scan(self.world, robot.true_pose, rng)
+        scan = self.sonar.scan(self.caster, robot.true_pose, rng)
         sense = Sense(robot.time_s, robot.odom_pose, scan, self.sonar.angles_rad,
                       robot.velocity[1], False)
         self.drive = Drive(sense, cfg, setup.follower.perception,
@@ -57,7 +61,7 @@ class SimRunner:
         for _ in range(self.cfg.steps_per_scan):
             blocked |= self.robot.step(v_mps, w_radps, self.dt).blocked
         s = self.drive.sense
-        s.ranges_m = self.sonar.scan(self.world, self.robot.true_pose, self.rng)
+        s.ranges_m = self.sonar.scan(self.caster, self.robot.true_pose, self.rng)
         s.t_s, s.odom = self.robot.time_s, self.robot.odom_pose
         s.w_radps, s.blocked = self.robot.velocity[1], blocked
 

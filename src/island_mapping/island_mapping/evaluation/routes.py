@@ -20,8 +20,11 @@ target's true origin. `evaluate_routes` compares the two on random island pairs.
 
 from __future__ import annotations
 
+import functools
 import math
+import multiprocessing
 from collections.abc import Generator, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -167,7 +170,8 @@ def follow_route(
     edges = _edges(graph, route)
     src = graph.get_island(route[0])
     true_start = start if start is not None else _random_start(src, c, gen)
-    robot = SimRobot(setup.world, true_start, gen, setup.robot, setup.odometry)
+    robot = SimRobot(setup.world, true_start, gen, setup.robot, setup.odometry,
+                     track_covariance=False)
     sim = SimRunner(setup, robot, gen, c)
     judge = _JudgedByTruth(graph, robot, c)
     islands = {i.id: i for i in graph.islands()}
@@ -216,7 +220,8 @@ def follow_route_global_odometry(
     src = graph.get_island(route[0])
     true_start = start if start is not None else _random_start(src, c, gen)
     robot = SimRobot(
-        setup.world, true_start, gen, setup.robot, setup.odometry, odom_start=origins_odom[route[0]]
+        setup.world, true_start, gen, setup.robot, setup.odometry,
+        odom_start=origins_odom[route[0]], track_covariance=False,
     )
     sim = SimRunner(setup, robot, gen, c)
     results: list[EdgeResult] = []
@@ -244,6 +249,46 @@ def with_reverse_edges(graph: TopoGraph) -> TopoGraph:
     return TopoGraph.from_parts(graph.islands(), edges)
 
 
+@dataclass(frozen=True)
+class RouteDraw:
+    """One random pair of the evaluation: its route, the robot's true start, the trips' seed."""
+
+    pair: tuple[int, int]
+    route: tuple[int, ...]
+    start: Pose2D
+    seed: int
+
+
+def draw_pairs(graph: TopoGraph, n_pairs: int, rng: np.random.Generator,
+               cfg: NavigateConfig | None = None) -> list[RouteDraw]:
+    """`n_pairs` draws of ordered pairs of distinct islands, uniform, from `rng`; a pair joined
+    by no route in `graph` is drawn (and uses up its randomness) but left out."""
+    c = cfg if cfg is not None else NavigateConfig()
+    ids = graph.island_ids()
+    draws: list[RouteDraw] = []
+    for _ in range(n_pairs):
+        a, b = (int(x) for x in rng.choice(ids, size=2, replace=False))
+        try:
+            route = tuple(graph.plan_route(a, b).islands)
+        except GraphError:
+            continue
+        start = _random_start(graph.get_island(a), c, rng)
+        draws.append(RouteDraw((a, b), route, start, int(rng.integers(2**31))))
+    return draws
+
+
+def run_trip(graph: TopoGraph, setup: SimSetup, origins_odom: Mapping[int, Pose2D],
+             cfg: NavigateConfig, baseline: bool, draw: RouteDraw) -> RouteResult:
+    """One trip of a draw, by the map or (`baseline`) on global odometry, on the draw's seed.
+
+    It depends on nothing but its arguments, so trips may run in any order or process."""
+    gen = np.random.default_rng(draw.seed)
+    if baseline:
+        return follow_route_global_odometry(graph, draw.route, origins_odom, setup, cfg, gen,
+                                            draw.start)
+    return follow_route(graph, draw.route, setup, cfg, gen, draw.start)
+
+
 def evaluate_routes(
     graph: TopoGraph,
     setup: SimSetup,
@@ -251,36 +296,34 @@ def evaluate_routes(
     rng: np.random.Generator,
     origins_odom: Mapping[int, Pose2D],
     cfg: NavigateConfig | None = None,
+    workers: int = 1,
 ) -> RouteEvaluation:
     """Success rates of `follow_route` and of the baseline over random island pairs.
 
     Pairs are drawn uniformly among ordered pairs of distinct islands joined by a route in the
     graph with every edge also usable backwards; both methods start from the same true pose.
+    `workers` > 1 runs the trips in that many processes: every trip has its own seed, drawn
+    before any runs, so the result is the sequential one whatever the number of workers.
     """
     c = cfg if cfg is not None else NavigateConfig()
     if n_pairs < 1:
         raise NavigateError(f"n_pairs: must be >= 1, got {n_pairs}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise NavigateError(f"workers: must be an int >= 1, got {workers!r}")
     g2 = with_reverse_edges(graph)
-    ids = g2.island_ids()
-    if len(ids) < 2:
-        raise NavigateError(f"evaluate_routes: needs at least 2 islands, the graph has {len(ids)}")
-    pairs: list[tuple[int, int]] = []
-    isl: list[RouteResult] = []
-    base: list[RouteResult] = []
-    for k in range(n_pairs):
-        a, b = (int(x) for x in rng.choice(ids, size=2, replace=False))
-        try:
-            route = g2.plan_route(a, b).islands
-        except GraphError:
-            continue
-        start = _random_start(g2.get_island(a), c, rng)
-        seed = int(rng.integers(2**31))
-        isl.append(follow_route(g2, route, setup, c, np.random.default_rng(seed), start))
-        base.append(
-            follow_route_global_odometry(
-                g2, route, origins_odom, setup, c, np.random.default_rng(seed), start
-            )
-        )
-        pairs.append((a, b))
-        del k
-    return RouteEvaluation(tuple(pairs), tuple(isl), tuple(base))
+    if len(g2.island_ids()) < 2:
+        raise NavigateError(
+            f"evaluate_routes: needs at least 2 islands, the graph has {len(g2.island_ids())}")
+    draws = draw_pairs(g2, n_pairs, rng, c)
+    trip = functools.partial(run_trip, g2, setup, dict(origins_odom), c)
+    kinds = [False, True] * len(draws)  # per draw: by the map, then the baseline
+    jobs = [d for d in draws for _ in (0, 1)]
+    if workers == 1 or len(jobs) < 2:
+        results = [trip(k, d) for k, d in zip(kinds, jobs, strict=True)]
+    else:
+        # spawn: the caller may hold threads (DDS, executors) that a fork would copy half-way.
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=ctx) as pool:
+            results = list(pool.map(trip, kinds, jobs))
+    return RouteEvaluation(tuple(d.pair for d in draws), tuple(results[0::2]),
+                           tuple(results[1::2]))

@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 from island_msgs_py.errors import InputError
-from island_msgs_py.geometry import clearance_m
 from island_msgs_py.types import FloatArray, Pose2D, wrap_angle
 
+from island_sim.core.near_walls import WallClearance
 from island_sim.core.world import World
 
 # Below this |dtheta| [rad] the arc update uses its series form (avoids 0/0 for straight moves).
@@ -435,6 +435,8 @@ class SimRobot:
 
     `odom_start` is where the odometry frame places the robot at t = 0 (default: the true start,
     so /odom and /ground_truth coincide at the start and their gap is the accumulated drift).
+    `track_covariance=False` skips propagating the odometry covariance (a third of a step's
+    cost) for users that never read it; `odom_covariance` and `epsilon_m` then raise.
     """
 
     def __init__(
@@ -445,18 +447,21 @@ class SimRobot:
         robot: RobotConfig | None = None,
         odometry: OdometryConfig | None = None,
         odom_start: Pose2D | None = None,
+        *,
+        track_covariance: bool = True,
     ) -> None:
         if not isinstance(rng, np.random.Generator):
             raise RobotError(f"SimRobot: rng must be a numpy.random.Generator, got {type(rng)}")
         self.robot = robot if robot is not None else RobotConfig()
         self.odometry = odometry if odometry is not None else OdometryConfig()
-        self._segments: FloatArray = (
+        self._walls = WallClearance(
             world.segments if world is not None else np.zeros((0, 4), dtype=np.float64)
         )
         self._rng = rng
         self._true = start.as_array()
         self._odom = (odom_start if odom_start is not None else start).as_array()
         self._cov: FloatArray = np.zeros((3, 3), dtype=np.float64)
+        self._track_cov = bool(track_covariance)
         self._v = 0.0
         self._w = 0.0
         self.time_s = 0.0
@@ -484,12 +489,17 @@ class SimRobot:
     @property
     def odom_covariance(self) -> FloatArray:
         """(3, 3) covariance of the odometric pose (x [m], y [m], theta [rad])."""
-        return self._cov.copy()
+        return self._covariance().copy()
 
     @property
     def epsilon_m(self) -> float:
         """Accumulated odometry error estimate [m] (sqrt of the largest xy eigenvalue)."""
-        return epsilon_from_covariance(self._cov)
+        return epsilon_from_covariance(self._covariance())
+
+    def _covariance(self) -> FloatArray:
+        if not self._track_cov:
+            raise RobotError("SimRobot: made with track_covariance=False, no covariance kept")
+        return self._cov
 
     @property
     def velocity(self) -> tuple[float, float]:
@@ -503,7 +513,7 @@ class SimRobot:
 
     def _centre_clearance_m(self) -> float:
         if self._clearance_cache is None:
-            self._clearance_cache = float(clearance_m(self._true[None, 0:2], self._segments)[0])
+            self._clearance_cache = self._walls.at(float(self._true[0]), float(self._true[1]))
         return self._clearance_cache
 
     # --- odometry model ------------------------------------------------------------------------
@@ -541,17 +551,19 @@ class SimRobot:
         self._limit(v_cmd_mps, w_cmd_radps, dt_s)
         ds, dth = self._v * dt_s, self._w * dt_s
         blocked = False
+        moved: FloatArray | None = None  # the true pose after an unblocked translation
         if ds != 0.0:
             cand = arc_update(self._true, ds, dth)
             before = self._centre_clearance_m()
-            after = float(clearance_m(cand[None, 0:2], self._segments)[0])
+            after = self._walls.at(float(cand[0]), float(cand[1]))
             if after < self.robot.radius_m and after < before - _CLEARANCE_EPS_M:
                 blocked = True  # the disk would enter a wall: the wheels stop, rotation only
                 ds = 0.0
                 self._v = 0.0
             else:
                 self._clearance_cache = after
-        self._true = arc_update(self._true, ds, dth)
+                moved = cand
+        self._true = moved if moved is not None else arc_update(self._true, ds, dth)
         self.distance_m += abs(ds)
         if blocked:
             self.blocked_steps += 1
@@ -567,6 +579,7 @@ class SimRobot:
         dth_o += sd_t * (rho * float(z[0]) + math.sqrt(max(1.0 - rho * rho, 0.0)) * float(z[1]))
         theta_before = float(self._odom[2])
         self._odom = arc_update(self._odom, ds_o, dth_o)
-        self._cov = propagate_covariance(self._cov, theta_before, ds_o, dth_o, q)
+        if self._track_cov:
+            self._cov = propagate_covariance(self._cov, theta_before, ds_o, dth_o, q)
         self.time_s += dt_s
         return StepResult(ds, dth, ds_o, dth_o, blocked)

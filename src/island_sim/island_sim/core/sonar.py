@@ -23,9 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 from island_msgs_py.errors import InputError
+from island_msgs_py.raycast import RayCaster
 from island_msgs_py.types import FloatArray, Pose2D
-
-from island_sim.core.world import World
 
 
 class SonarError(InputError):
@@ -127,7 +126,7 @@ class SonarConfig:
 
 
 class SonarModel:
-    """Simulates the ring described by a `SonarConfig` on a `World`.
+    """Simulates the ring described by a `SonarConfig` on a `World` (any `RayCaster`).
 
     `seed` seeds the model's own generator, used when `scan` gets no `rng`: a model is
     deterministic unless the caller passes a generator of its own.
@@ -171,13 +170,13 @@ class SonarModel:
         return c.range_min_m + c.ring_radius_m, c.range_max_m + c.ring_radius_m
 
     def scan(
-        self, world: World, pose: Pose2D, rng: np.random.Generator | None = None
+        self, world: RayCaster, pose: Pose2D, rng: np.random.Generator | None = None
     ) -> FloatArray:
         """(N,) ranges from the robot centre [m] at `pose` in `world`; `inf` = no echo."""
         return self.scan_many(world, pose.as_array()[None, :], rng)[0]
 
     def scan_many(
-        self, world: World, poses: npt.ArrayLike, rng: np.random.Generator | None = None
+        self, world: RayCaster, poses: npt.ArrayLike, rng: np.random.Generator | None = None
     ) -> FloatArray:
         """(P, N) ranges from the robot centre [m] at poses (P, 3) rows (x [m], y [m], theta [rad]).
 

@@ -82,6 +82,11 @@ class World:
     def __deepcopy__(self, memo: dict[int, Any]) -> World:
         return self  # immutable; the cached index holds a lock that cannot be copied
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickled (to a worker process) as its segments, name and start pose: the cached index
+        holds a lock, and the copy builds its own on first use."""
+        return (World, (np.asarray(self.segments), self.name, self.start_pose))
+
     @property
     def bounds(self) -> tuple[float, float, float, float]:
         """(xmin, ymin, xmax, ymax) [m] of all segment endpoints (0s for an empty world)."""

@@ -26,6 +26,7 @@ from island_msgs_py.conversions import (
     odometry_to_pose,
 )
 from island_msgs_py.qos import STREAM_QOS
+from island_msgs_py.raycast import NearbyRayCaster
 from island_msgs_py.ros_params import (
     BadMessageLog,
     clock_ns,
@@ -81,6 +82,8 @@ class SonarNode(Node):
             raise SonarNodeError(f"sensor_rate_hz: must be > 0, got {self.cfg.sensor_rate_hz}")
         self.world = load_world(self.cfg.world)
         self.model = SonarModel(self.cfg.sonar)
+        # The world's echoes, cast against the walls within the sonar's range only.
+        self.caster = NearbyRayCaster(self.world, self.cfg.sonar.range_max_m)
         self.rng = np.random.default_rng(self.cfg.seed)
         self.period_ns = round(1e9 / self.cfg.sensor_rate_hz)
         self.limits_m = self.model.scan_limits_m()
@@ -113,7 +116,7 @@ class SonarNode(Node):
         if self._last_period is not None and period <= self._last_period:
             return  # still inside the period of the last scan (or an old message)
         self._last_period = period
-        ranges = self.model.scan(self.world, pose, self.rng)
+        ranges = self.model.scan(self.caster, pose, self.rng)
         # transducer i is scan index i; bearings increase from first_angle_deg (CCW)
         scan = arrays_to_scan(ranges, self.model.angles_rad, self.limits_m, t_ns,
                               self.cfg.frame_prefix + self.cfg.frame_id, self.period_ns * 1e-9)
