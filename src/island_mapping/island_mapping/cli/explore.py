@@ -80,9 +80,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="simulated exploration time [s] (default 900)")
     parser.add_argument("--routes", type=COUNT, default=20,
                         help="random island pairs for the route-following evaluation (0 = skip)")
-    parser.add_argument("--route-workers", type=COUNT, default=0,
-                        help="processes following the evaluation's routes (default 0 = one per "
-                             "CPU); the figures do not depend on it")
+    parser.add_argument("--route-workers", type=COUNT, default=1,
+                        help="processes following the evaluation's routes (default 1; 0 = one "
+                             "per CPU); the figures do not depend on it")
     parser.add_argument("--no-record", action="store_true", help="do not write run_bag/")
     parser.add_argument("--wall-timeout", type=POSITIVE_SECONDS, default=3600.0,
                         help="give up after this much wall time [s]")
