@@ -25,6 +25,7 @@ from island_mapping.core.builder.checks import localizes_back
 from island_mapping.core.builder.config import BuilderConfig
 from island_mapping.core.builder.diagnostics import Diagnostics, Refusal
 from island_mapping.core.builder.geometry import drive_clear, from_frame, to_frame
+from island_mapping.core.builder.inlier_field import InlierField
 from island_mapping.core.builder.links import Link, LinkGraph
 from island_mapping.core.builder.places import PlaceSearch
 from island_mapping.core.builder.uncertainty import (
@@ -108,6 +109,7 @@ class Recognizer:
         # Where the robot was (odometry) when each island's covariance was taken.
         self._cov_at: dict[int, Pose2D] = {}
         self._places: dict[int, PlaceSearch] = {}
+        self._fields: dict[int, InlierField] = {}  # each island's inlier test, for the search
         self.links = LinkGraph()
 
     # ----- what is known -----
@@ -412,7 +414,7 @@ class Recognizer:
         """The best-scoring distinct guesses of a grid around `est` (the fraction of points
         within inlier_m of the model), at most refine_guesses of them."""
         rc = self.config.revisit
-        segs = island.model.segments
+        inliers = self._inlier_field(island)
         n = math.floor(win.radius_m / win.step_m + 1e-9)
         ticks = np.arange(-n, n + 1) * win.step_m
         gx, gy = np.meshgrid(ticks, ticks)
@@ -428,8 +430,7 @@ class Recognizer:
             base = rot + np.array([est.x, est.y])
             for chunk in np.array_split(offs, max(1, len(offs) // _GUESSES_PER_BATCH)):
                 world = (base[None, :, :] + chunk[:, None, :]).reshape(-1, 2)
-                d = point_segment_distance(world, segs).min(axis=1).reshape(len(chunk), -1)
-                score = np.mean(d <= rc.inlier_m, axis=1)
+                score = np.mean(inliers.within(world).reshape(len(chunk), -1), axis=1)
                 for k in range(len(chunk)):
                     guesses.append(
                         (float(score[k]), Pose2D(est.x + chunk[k, 0], est.y + chunk[k, 1], th))
@@ -442,6 +443,17 @@ class Recognizer:
             if len(chosen) >= rc.refine_guesses:
                 break
         return chosen
+
+    def _inlier_field(self, island: Island) -> InlierField:
+        """The inlier test of island's model at revisit.inlier_m (made once per model)."""
+        segs = island.model.segments
+        got = self._fields.get(island.id)
+        if got is None or got.inlier_m != self.config.revisit.inlier_m or not np.array_equal(
+            got.segments, segs
+        ):
+            got = InlierField(segs, self.config.revisit.inlier_m)
+            self._fields[island.id] = got
+        return got
 
     def _refine(self, island: Island, pts: FloatArray, est: Pose2D, win: _Window,
                 refuse: Callable[[Refusal], None]) -> list[Recognition]:
