@@ -225,6 +225,8 @@ class PassiveBuilder:
         self._tried = 0  # loop-closure recognitions tried
         self._path_m = 0.0  # odometric path [m]
         self._last: tuple[int, float] | None = None  # the island last localized in, path then
+        self._seen_at: dict[int, float] = {}  # path when each island was last localized in [m]
+        self._reentries = [0, 0]  # by the tracker (islands near by odometry): all, after a loop
         self.events: list[BuilderEvent] = []
         self.islands: list[PassiveIsland] = []
         self.attempts: list[PassiveAttempt] = []
@@ -275,7 +277,8 @@ class PassiveBuilder:
         """The islands, attempts and per-scan localizations so far."""
         n = len(self._scan_island)
         closure = None if self.hooks is None else closure_counts(
-            self.diagnostics, self._tried, self.revisits)
+            self.diagnostics, self._tried, self.revisits,
+            (self._reentries[0], self._reentries[1]))
         return IslandRun(tuple(self.islands), tuple(self.attempts),
                          np.asarray(self._scan_island, dtype=np.int64),
                          np.asarray(self._scan_pose, dtype=np.float64).reshape(n, 3),
@@ -319,9 +322,21 @@ class PassiveBuilder:
             for _, k, guess in self.recognizer.near(odom, radius):
                 fixed = self._try_fix(k, i, guess)
                 if fixed is not None:
+                    self._count_reentry(k)
                     self._current = k
                     break
         return fixed
+
+    def _count_reentry(self, k: int) -> None:
+        """The tracker re-entered island k (near by odometry, a small correction): counted, and
+        whether the robot had gone a loop's length (revisit.min_loop_m) since it was last there
+        (a loop closed without the recognizer's search and gate)."""
+        if self.hooks is None:
+            return
+        self._reentries[0] += 1
+        since = self._path_m - self._seen_at.get(k, self._path_m)
+        if since >= self.recognizer.config.revisit.min_loop_m:
+            self._reentries[1] += 1
 
     def _try_fix(self, k: int, i: int, guess: FloatArray) -> FloatArray | None:
         """Scan i localized in island k from `guess` (island frame), if trusted and within the
@@ -344,6 +359,7 @@ class PassiveBuilder:
                 Pose2D(*(float(v) for v in pose)).inverse())
             self.recognizer.remember(island, origin, self._track.cov.copy())
             self._last = (island, self._path_m)
+            self._seen_at[island] = self._path_m
 
     def _lost(self, i: int) -> None:
         """Scan i in no island, epsilon past E_min: a known place (loop closure, with hooks;

@@ -76,11 +76,12 @@ def approach_polyline(odoms: Sequence[FloatArray], back_m: float) -> FloatArray:
     return np.asarray(pts, dtype=np.float64)
 
 
-def closure_counts(diagnostics: Diagnostics, tried: int, revisits: Sequence[PassiveRevisit]
-                   ) -> dict[str, Any]:
-    """Loop closure over a run: recognitions tried (before an attempt), proposed by the
-    recognizer, kept by the gate, and every refusal by reason (hypotheses and whole
-    recognitions, counted as the live builder counts them)."""
+def closure_counts(diagnostics: Diagnostics, tried: int, revisits: Sequence[PassiveRevisit],
+                   reentries: tuple[int, int] = (0, 0)) -> dict[str, Any]:
+    """Loop closure over a run: recognitions tried (before an attempt), kept by the gate,
+    every refusal by reason (hypotheses and whole recognitions, counted as the live builder
+    counts them), and the passive tracker's re-entries into islands near by odometry (all,
+    and those after a loop's length of path since the island was last localized in)."""
     d2 = [r.mahalanobis2 for r in revisits if r.mahalanobis2 is not None]
     return {
         "tried": tried,
@@ -88,5 +89,7 @@ def closure_counts(diagnostics: Diagnostics, tried: int, revisits: Sequence[Pass
         "refused": dict(sorted(diagnostics.revisit_refusals.items())),
         "largest_mahalanobis2": None if not d2 else round(max(d2), 3),
         "revisited_islands": sorted({r.island_id for r in revisits}),
+        "tracker_reentries": reentries[0],
+        "tracker_reentries_after_loop": reentries[1],
     }
 
