@@ -24,12 +24,12 @@ BoolArray = npt.NDArray[np.bool_]
 
 CELL_M = 0.05
 """Grid side [m]: the band answered directly is +-0.035 m around inlier_m."""
-MAX_NODES = 2_000_000
-"""A model whose grid would be larger is answered directly (bounded memory) [-]."""
+MAX_NODES = 1_000_000
+"""A model whose grid would be larger is answered directly (at most 4 MB per grid) [-]."""
 _NODES_PER_CHUNK = 4096
 """Grid nodes per distance evaluation (bounds the (nodes x walls) temporaries) [-]."""
-_TOLERANCE_M = 1e-9
-"""Rounding allowance of the grid's decision [m]."""
+_TOLERANCE_M = 1e-4
+"""Rounding allowance of the grid's decision (the grid is stored in float32) [m]."""
 
 
 class InlierField:
@@ -40,7 +40,7 @@ class InlierField:
         self.inlier_m = float(inlier_m)
         self._cell = float(cell_m)
         self._slack = 0.5 * math.sqrt(2.0) * self._cell + _TOLERANCE_M
-        self._grid: FloatArray | None = None
+        self._grid: npt.NDArray[np.float32] | None = None
         self._lo = np.zeros(2)
         if self.segments.shape[0] == 0:
             return
@@ -58,7 +58,7 @@ class InlierField:
         for k in range(0, nodes.shape[0], _NODES_PER_CHUNK):
             part = nodes[k:k + _NODES_PER_CHUNK]
             dist[k:k + _NODES_PER_CHUNK] = point_segment_distance(part, self.segments).min(axis=1)
-        self._grid = dist.reshape(gx.shape)
+        self._grid = dist.reshape(gx.shape).astype(np.float32)
 
     def within(self, points: FloatArray) -> BoolArray:
         """(N,) whether each of (N, 2) points [m] lies within inlier_m of a wall."""

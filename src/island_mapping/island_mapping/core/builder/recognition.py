@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import OrderedDict
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
@@ -39,6 +40,8 @@ from island_mapping.core.localize import localize
 
 # Guesses scored per batch of the grid search (bounds the (guesses x points x walls) array).
 _GUESSES_PER_BATCH = 40
+# Inlier grids kept for the islands searched last (each at most 4 MB, typically < 1 MB).
+_FIELDS_KEPT = 64
 
 
 def _ignore(_reason: Refusal) -> None:
@@ -109,7 +112,8 @@ class Recognizer:
         # Where the robot was (odometry) when each island's covariance was taken.
         self._cov_at: dict[int, Pose2D] = {}
         self._places: dict[int, PlaceSearch] = {}
-        self._fields: dict[int, InlierField] = {}  # each island's inlier test, for the search
+        # the inlier tests of the islands searched last (most recent last; bounded memory)
+        self._fields: OrderedDict[int, InlierField] = OrderedDict()
         self.links = LinkGraph()
 
     # ----- what is known -----
@@ -452,7 +456,10 @@ class Recognizer:
             got.segments, segs
         ):
             got = InlierField(segs, self.config.revisit.inlier_m)
-            self._fields[island.id] = got
+        self._fields[island.id] = got
+        self._fields.move_to_end(island.id)
+        while len(self._fields) > _FIELDS_KEPT:
+            self._fields.popitem(last=False)
         return got
 
     def _refine(self, island: Island, pts: FloatArray, est: Pose2D, win: _Window,
