@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 from island_mapping.core.builder import BuilderConfig, BuilderError, IslandBuilder
+from island_mapping.core.builder.diagnostics import Refusal
 from island_mapping.core.builder.hooks import BuilderHooks
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
 from island_mapping.core.explore import (
@@ -266,9 +267,10 @@ def test_a_revisit_docks_onto_the_right_island(right: int) -> None:
     assert found is not None and found.island_id == right
     assert math.hypot(found.pose.x - 0.4, found.pose.y - 0.2) < 0.1
     gate = explorer_hooks(ExplorerConfig(), TopoGraph).accept_revisit
-    assert gate is not None and gate(found, snap, _t_island(right), False)
+    assert gate is not None and gate(found, snap, _t_island(right), False) is None
     far = Recognition(right, Pose2D(4.0, 0.0, 0.0), found.residual_m, found.inlier_fraction)
-    assert not gate(far, snap, _t_island(right), False)  # seen from the next place: no dock
+    # seen from the next place: no dock
+    assert gate(far, snap, _t_island(right), False) is Refusal.NOT_AT_PLACE
 
 
 @pytest.mark.parametrize("came_deg", [180.0, 95.0, -90.0])
@@ -282,12 +284,14 @@ def test_a_revisit_docks_only_through_an_exit_facing_the_arrival(came_deg: float
     rec = Recognition(1, Pose2D(0.4, 0.2, 0.05), 0.05, 0.9, mahalanobis2=2.0,
                       arrival_rad=math.radians(came_deg))
     facing = came_deg != -90.0
-    assert gate(rec, snap, _t_island(1, T_EXITS), True) is facing
-    assert gate(rec, snap, _t_island(1), True)  # no exits known: no evidence against
+    assert (gate(rec, snap, _t_island(1, T_EXITS), True) is None) is facing
+    assert gate(rec, snap, _t_island(1), True) is None  # no exits known: no evidence against
     unknown = Recognition(1, rec.pose, 0.05, 0.9, mahalanobis2=2.0)
-    assert not gate(unknown, snap, _t_island(1, T_EXITS), True)  # no arrival: no evidence for
+    # no arrival: no evidence for
+    assert gate(unknown, snap, _t_island(1, T_EXITS), True) is Refusal.TOPOLOGY
     unlikely = Recognition(1, rec.pose, 0.05, 0.9, mahalanobis2=30.0, arrival_rad=math.pi)
-    assert not gate(unlikely, snap, _t_island(1, T_EXITS), True)  # outside the uncertainty
+    # outside the uncertainty
+    assert gate(unlikely, snap, _t_island(1, T_EXITS), True) is Refusal.OUTSIDE_UNCERTAINTY
 
 
 def test_the_explorers_search_reaches_a_drifted_island_and_docks_onto_it() -> None:

@@ -154,7 +154,7 @@ def test_islands_on_a_synthetic_building_through_the_cli(
     assert m["bridged"]["mean_trans_err_m"] < 0.05
     inside = m["reference"]["inside_islands"]
     assert inside["count"] > 0 and inside["mean_trans_err_m"] < 0.05
-    assert m["reference"]["places"]["places"] >= 1
+    assert m["places"]["places"] >= 1
     text = capsys.readouterr().out
     assert "b.log" in text and "bridged, headline" in text and "islands per place" in text
 

@@ -140,7 +140,7 @@ def test_a_recognition_displaced_along_a_long_straight_drive_is_refused(across: 
     assert gate is not None
     assert found.mahalanobis2 is not None
     assert (found.mahalanobis2 <= 11.34) is across
-    assert gate(found, snap, island, True) is across
+    assert (gate(found, snap, island, True) is None) is across
 
 
 def test_a_stars_recognition_carries_its_mahalanobis_distance() -> None:

@@ -3,6 +3,7 @@ reference trajectory.
 
   islands eval-relations --log LOG [--relations FILE] [--reference FILE] --out DIR
                          [--beams 180|24|16] [--localize-beams 24|16] [--place-recognition]
+                         [--no-loop-closure]
                          [--fov-deg D --angle-min-deg A] [--time-offset-s S]
                          [--seed N] [--bridge-s S] [--max-scans N]
 
@@ -55,6 +56,14 @@ def add_geometry_arguments(parser: argparse.ArgumentParser) -> None:
                              "axis [deg] (default: the scan is centred)")
 
 
+def add_loop_closure_argument(parser: Any) -> None:
+    """--no-loop-closure on `parser` (a parser or an argument group): the passive mode without
+    live exploration's loop closure."""
+    parser.add_argument("--no-loop-closure", action="store_true",
+                        help="do not recognize known islands before an attempt with live "
+                             "exploration's revisit search and gate (the figures before it)")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log", required=True,
                         help="CARMEN log (FLASER/RLASER/ROBOTLASER1 and ODOM), e.g. intel.gfs.log")
@@ -78,6 +87,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--place-recognition", action="store_true",
                         help="a lost robot first searches every island's model for its scan "
                              "(re-enters islands on revisits; slower)")
+    add_loop_closure_argument(parser)
     parser.add_argument("--seed", type=SEED, default=0,
                         help="recorded only: the pipeline has no random step")
     parser.add_argument("--bridge-s", type=SECONDS, default=DEFAULT_BRIDGE_S,
@@ -93,10 +103,11 @@ def progress(scan: int, scans: int, islands: int) -> None:
 
 
 def offline_config(args: argparse.Namespace) -> offline.OfflineConfig:
-    """The passive builder's configuration of --beams, --localize-beams, --place-recognition."""
+    """The passive builder's configuration of --beams, --localize-beams, --place-recognition,
+    --no-loop-closure."""
     base = offline.sonar_like_config(args.beams)
     return dataclasses.replace(
-        base, localize_beams=args.localize_beams,
+        base, localize_beams=args.localize_beams, loop_closure=not args.no_loop_closure,
         islands=dataclasses.replace(base.islands, place_recognition=args.place_recognition))
 
 

@@ -3,7 +3,8 @@ built by the builder's passive mode, with the outputs of `islands eval-relations
 
   islands replay BAG --passive --out DIR [--scan-topic T] [--odom-topic T]
                  [--relations FILE] [--reference FILE] [--time-offset-s S]
-                 [--beams 180|24|16] [--place-recognition] [--fov-deg D --angle-min-deg A]
+                 [--beams 180|24|16] [--place-recognition] [--no-loop-closure]
+                 [--fov-deg D --angle-min-deg A]
 
 BAG is a rosbag2 directory or .mcap (a recorded real run, `islands bag import-carmen`'s output).
 The scans' geometry is the LaserScan's own; the reference trajectory is --reference, else the
@@ -34,6 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                    help="180 = the laser (every beam); 24 or 16 = sonar-like mode")
     g.add_argument("--place-recognition", action="store_true",
                    help="a lost robot searches every island's model for its scan")
+    ev.add_loop_closure_argument(g)
     g.add_argument("--bridge-s", type=float, default=ev.DEFAULT_BRIDGE_S,
                    help="bridged scoring limit [s]")
     ev.add_geometry_arguments(parser)

@@ -2,6 +2,8 @@
 passive mode (island_mapping.core.builder.passive) walks the scans as the exploring robot would
 (`build_islands_offline`). The laser mode keeps every beam; the sonar-like modes keep 24 or 16
 beams (the same beams as the MCAP importer), a sonar's range and line fit, and a wider window.
+Loops are closed as live exploration closes them (`loop_closure`: exploration's revisit search
+and gate, `core.explore.loop_closure_hooks`, installed in the passive mode).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from island_mapping.core.builder.passive import (
     PassiveConfig,
     replace_builder,
 )
+from island_mapping.core.explore import ExplorerConfig, loop_closure_hooks
 from island_mapping.core.lines import LineFitConfig
 from island_mapping.logs.carmen import flaser_angles, sonar_like_indices
 
@@ -75,6 +78,17 @@ class OfflineConfig:
     )
     islands: PassiveConfig = field(
         default_factory=PassiveConfig, metadata={"help": "the passive builder"}
+    )
+    loop_closure: bool = field(
+        default=True,
+        metadata={"help": "before each attempt, recognize known islands with live "
+                  "exploration's revisit search and loop-closure gate (full covariance since an "
+                  "island's origin was last known) [bool]"},
+    )
+    explorer: ExplorerConfig = field(
+        default_factory=ExplorerConfig,
+        metadata={"help": "live exploration's settings whose revisit search and gate "
+                  "(revisit, revisit_near_m, revisit_max_mahalanobis2) close loops"},
     )
 
     def __post_init__(self) -> None:
@@ -173,7 +187,9 @@ def build_islands_offline(
             f"build_islands_offline: {rng.shape} ranges, {raw.shape} poses, {t.shape[0]} times"
         )
     build, fix = beam_points(rng, cfg, angles_rad, mount)
-    builder = PassiveBuilder(cfg.islands, localizer=localizer, fit=fitter, evaluate=evaluator)
+    hooks = loop_closure_hooks(cfg.explorer) if cfg.loop_closure else None
+    builder = PassiveBuilder(cfg.islands, localizer=localizer, fit=fitter, evaluate=evaluator,
+                             hooks=hooks)
     covs = propagate_covariances(raw, cfg.odometry)
     n = raw.shape[0]
     for i in range(n):

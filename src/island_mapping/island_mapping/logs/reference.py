@@ -8,8 +8,11 @@ TUM format `t x y z qx qy qz qw` (the yaw of the quaternion is kept); `#` commen
 island gives them against the reference's (error e = truth^-1 (+) estimate, as for relations):
 without relations, this is how well island-local poses agree with the reference.
 
-`places(...)`: island origins placed by the reference at their anchor scans, joined into places
-when closer than `PLACE_RADIUS_M`: how many islands store one place.
+`places(...)`: island origins placed by the reference at their anchor scans, merged into places
+as issue 16's yardstick merges places (within `PLACE_RADIUS_M` of a place's first island, in
+build order): how many islands store one place, and which islands duplicate a place (each a
+missed loop closure). `closure_errors(...)`: how far each loop closure put an island's origin
+from where the reference has it (more than `FALSE_MERGE_M`: a false merge).
 """
 
 from __future__ import annotations
@@ -21,17 +24,19 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from island_msgs_py.geometry import relative_poses
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
+from island_msgs_py.geometry import compose_poses, relative_poses
 
 from island_mapping.core.relations import ErrorStats, Localized, relative_pose_errors
 from island_mapping.logs.errors import LogFormatError
 
 FloatArray = npt.NDArray[np.float64]
 
-PLACE_RADIUS_M = 1.5
-"""Island origins closer than this (by the reference) store the same place [m]."""
+PLACE_RADIUS_M = 2.0
+"""An island whose origin lies this close (by the reference) to a place's first island stores
+that place again (issue 16's world yardstick merges places within 2 m) [m]."""
+FALSE_MERGE_M = 3.0
+"""A loop closure that puts an island's origin farther than this from where the reference has
+it is a false merge (as the world yardstick's `false_merge_m`) [m]."""
 MAX_PAIRS_PER_ISLAND = 2000
 """Scan pairs scored per island at most (evenly chosen; a long stay gives thousands) [-]."""
 
@@ -125,18 +130,60 @@ def inside_islands(run: Localized, ref_poses: FloatArray, has_ref: npt.NDArray[n
     return ErrorStats.of(np.concatenate(trans), np.concatenate(rot)), islands
 
 
-def places(anchor_poses: FloatArray, radius_m: float = PLACE_RADIUS_M) -> dict[str, Any]:
-    """Island origins (K, 3) by the reference joined into places (single linkage within
-    radius_m): counts, and the places that hold more than one island (island ids)."""
-    k = anchor_poses.shape[0]
-    if k == 0:
-        return {"islands": 0, "places": 0, "islands_per_place": None, "repeated": []}
-    pairs = cKDTree(anchor_poses[:, :2]).query_pairs(radius_m, output_type="ndarray")
-    from scipy.sparse import coo_matrix
+def places(island_ids: npt.ArrayLike, origins: FloatArray,
+           radius_m: float = PLACE_RADIUS_M) -> dict[str, Any]:
+    """Islands (ids in build order) with their origins (K, 3) by the reference, merged into
+    places: an island joins the place whose first island's origin is nearest, if within
+    radius_m [m], else it founds a place. Counts, the places held by several islands (their
+    ids), and each island that duplicates a place (a missed loop closure: the place's first
+    island and the distance to it [m])."""
+    ids = [int(i) for i in np.asarray(island_ids).reshape(-1)]
+    xy = np.asarray(origins, dtype=np.float64).reshape(-1, 3)[:, :2]
+    if len(ids) != xy.shape[0]:
+        raise ValueError(f"places: {len(ids)} island ids for {xy.shape[0]} origins")
+    leaders: list[int] = []  # index of each place's first island
+    members: list[list[int]] = []
+    duplicates: list[dict[str, Any]] = []
+    for k in range(len(ids)):
+        d = np.hypot(*(xy[leaders] - xy[k]).T) if leaders else np.zeros(0)
+        if d.size and float(d.min()) <= radius_m:
+            p = int(np.argmin(d))
+            members[p].append(ids[k])
+            duplicates.append({"island": ids[k], "place_of": ids[leaders[p]],
+                               "distance_m": round(float(d[p]), 3)})
+        else:
+            leaders.append(k)
+            members.append([ids[k]])
+    n = len(leaders)
+    return {"computable": True, "islands": len(ids), "places": n,
+            "islands_per_place": None if n == 0 else round(len(ids) / n, 3),
+            "place_radius_m": radius_m,
+            "places_with_several": [m for m in members if len(m) > 1],
+            "duplicates": duplicates}
 
-    adj = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(k, k))
-    n, label = connected_components(adj, directed=False)
-    repeated = [sorted(int(i) for i in np.flatnonzero(label == c))
-                for c in range(n) if np.sum(label == c) > 1]
-    return {"islands": int(k), "places": int(n), "islands_per_place": round(k / n, 3),
-            "place_radius_m": radius_m, "repeated": repeated}
+
+def no_places(why: str) -> dict[str, Any]:
+    """The places entry when they cannot be computed (no reference), saying why."""
+    return {"computable": False, "why": why}
+
+
+def closure_errors(closures: list[tuple[int, int, FloatArray]], ref_poses: FloatArray,
+                   has_ref: npt.NDArray[np.bool_], anchor_scan: dict[int, int],
+                   false_merge_m: float = FALSE_MERGE_M) -> dict[str, Any]:
+    """Loop closures (scan, island id, the scan's pose in the island frame (3,)) against the
+    reference: where each puts the island's origin (the scan's reference pose composed with
+    the inverse of its island pose) against the island's own origin by the reference (its
+    anchor scan's); the errors [m] and the false merges (farther than false_merge_m)."""
+    errors: list[dict[str, Any]] = []
+    for scan, island, pose in closures:
+        a = anchor_scan[island]
+        if not (has_ref[scan] and has_ref[a]):
+            continue
+        # the origin = ref[scan] (+) pose^-1 (the scan is at `pose` in the island frame)
+        inv = relative_poses(np.asarray(pose, dtype=np.float64), np.zeros(3))
+        origin = compose_poses(ref_poses[scan], inv)[0]
+        err = math.hypot(origin[0] - ref_poses[a, 0], origin[1] - ref_poses[a, 1])
+        errors.append({"scan": int(scan), "island": int(island), "origin_error_m": round(err, 3)})
+    return {"scored": len(errors), "false_merge_m": false_merge_m,
+            "false_merges": sum(e["origin_error_m"] > false_merge_m for e in errors),
+            "closures": errors}

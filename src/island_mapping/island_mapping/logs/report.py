@@ -11,8 +11,12 @@ mode (`logs.islands.build_islands_offline`) and scores them:
   relations beside them; the relations' time offset is found from the log
   (`core.relations.find_time_offset`) unless given; relations outside the log's time span are
   counted and left out;
-- against a reference trajectory inside islands (`logs.reference.inside_islands`), and islands
-  per place (island origins placed by the reference).
+- against a reference trajectory inside islands (`logs.reference.inside_islands`), islands
+  per place (island origins placed by the reference, merged within 2 m as issue 16's yardstick
+  merges places; the islands that duplicate a place are missed loop closures; without a
+  reference this cannot be computed and says so) and the loop closures' errors;
+- loop closure (live exploration's search and gate): recognitions tried, kept, refused by
+  reason.
 
 `headline(metrics)` is the console summary (the bridged figures first).
 """
@@ -166,17 +170,15 @@ def evaluate_log(log: RecordedLog, cfg: offline.OfflineConfig, scoring: Scoring,
         "beams": cfg.beams,
         "localize_beams": cfg.localize_beams or cfg.beams,
         "place_recognition": cfg.islands.place_recognition,
+        "loop_closure": run.loop_closure,
     })
     got = reference_at_scans(log, n, scoring)
     if got is not None:
-        poses, ok, name, offset = got
-        stats, n_isl = refs.inside_islands(run, poses, ok)
-        anchors = np.array([poses[i.anchor_scan] for i in run.islands
-                            if ok[i.anchor_scan]]).reshape(-1, 3)
-        metrics["reference"] = {"name": name, **({"time_offset": offset} if offset else {}),
-                                "scans_with_pose": int(np.sum(ok)),
-                                "inside_islands": {**stats.as_dict(), "islands": n_isl},
-                                "places": refs.places(anchors)}
+        metrics.update(reference_metrics(run, *got))
+    else:
+        metrics["places"] = refs.no_places(
+            "no reference trajectory (--reference, a corrected log's poses or /gmapping_pose): "
+            "where island origins lie cannot be known from raw odometry")
     metrics["config"] = _config_summary(cfg)
     metrics["islands"] = [
         {"id": i.island.id, "anchor_scan": i.anchor_scan,
@@ -186,6 +188,28 @@ def evaluate_log(log: RecordedLog, cfg: offline.OfflineConfig, scoring: Scoring,
         for i in run.islands
     ]
     return metrics, run
+
+
+def reference_metrics(run: IslandRun, poses: FloatArray, ok: npt.NDArray[np.bool_], name: str,
+                      offset: dict[str, Any]) -> dict[str, Any]:
+    """What the reference says of the islands: agreement inside them, places (islands per
+    place, duplicates), and the loop closures' errors."""
+    stats, n_isl = refs.inside_islands(run, poses, ok)
+    placed = [i for i in run.islands if ok[i.anchor_scan]]
+    places = refs.places([i.island.id for i in placed],
+                         np.array([poses[i.anchor_scan] for i in placed]).reshape(-1, 3))
+    places["islands_without_reference"] = len(run.islands) - len(placed)
+    out: dict[str, Any] = {
+        "reference": {"name": name, **({"time_offset": offset} if offset else {}),
+                      "scans_with_pose": int(np.sum(ok)),
+                      "inside_islands": {**stats.as_dict(), "islands": n_isl}},
+        "places": places,
+    }
+    if run.loop_closure is not None:
+        out["reference"]["loop_closures"] = refs.closure_errors(
+            [(r.scan, r.island_id, r.pose) for r in run.revisits], poses, ok,
+            {i.island.id: i.anchor_scan for i in run.islands})
+    return out
 
 
 def _config_summary(cfg: offline.OfflineConfig) -> dict[str, Any]:
@@ -232,13 +256,32 @@ def headline(m: dict[str, Any]) -> list[str]:
                    f"({m['time_offset']['source']})")
     r = m.get("reference")
     if r is not None:
-        ins, pl = r["inside_islands"], r["places"]
+        ins = r["inside_islands"]
         out.append(f"  inside islands vs {r['name']}: {ins['count']} scan pairs in "
                    f"{ins['islands']} islands, {_fmt(ins)}")
-        out.append(f"  islands per place: {pl['islands']} islands at {pl['places']} places "
-                   f"(origins within {refs.PLACE_RADIUS_M:g} m); places held by several islands: "
-                   f"{len(pl['repeated'])}")
+    out.append(_places_line(m.get("places")))
+    lc = m.get("loop_closure")
+    if lc is not None:
+        refused = ", ".join(f"{k} {v}" for k, v in lc["refused"].items()) or "none"
+        errs = None if r is None else r.get("loop_closures")
+        merged = "" if errs is None else (
+            f"; {errs['false_merges']} false merges (origin > {errs['false_merge_m']:g} m "
+            f"from the reference's)")
+        out.append(f"  loop closure (live exploration's gate): {lc['accepted']} of "
+                   f"{lc['tried']} recognitions kept{merged}; refused: {refused}; the "
+                   f"tracker re-entered islands near by odometry {lc['tracker_reentries']} "
+                   f"times ({lc['tracker_reentries_after_loop']} after a loop)")
     return out
+
+
+def _places_line(pl: dict[str, Any] | None) -> str:
+    if pl is None or not pl.get("computable"):
+        why = "" if pl is None else f": {pl['why']}"
+        return f"  islands per place: cannot be computed{why}"
+    dups = ", ".join(f"{d['island']} (of {d['place_of']})" for d in pl["duplicates"]) or "none"
+    return (f"  islands per place: {pl['islands_per_place']} ({pl['islands']} islands at "
+            f"{pl['places']} places, origins merged within {pl['place_radius_m']:g} m); "
+            f"islands duplicating a place: {dups}")
 
 
 def from_carmen(path: str, override: Any = None) -> RecordedLog:

@@ -24,6 +24,8 @@ class Refusal(StrEnum):
     LOCALIZATION_CHECK = "localization_check"
     DRIFT_TOO_LARGE = "drift_too_large"  # the search could not cover where the island may be
     LOOK_ALIKE = "look_alike"  # another island that may be here fits as well
+    NOT_AT_PLACE = "not_at_place"  # the loop-closure gate: seen from the next place
+    OUTSIDE_UNCERTAINTY = "outside_uncertainty"  # the gate: beyond the propagated covariance
     TOPOLOGY = "topology"  # the explorer's gate: no exit of the island faces the arrival
 
 

@@ -14,8 +14,10 @@
 - **Exits** (`BuilderHooks.find_exits`): called at acceptance with what the star saw, in the
   island frame; the exit facing where the robot came from is the arrival.
 - **Revisit gate** (`BuilderHooks.accept_revisit`): a recognition the Recognizer proposed is
-  kept only if the gate agrees (loop closure with topological evidence); the recognition it
-  sees carries the direction the robot came from in the island frame (`arrival_rad`).
+  kept only if the gate agrees (loop closure with topological evidence): it answers why it
+  refuses (a `Refusal`, counted) or None; the recognition it sees carries the direction the
+  robot came from in the island frame (`arrival_rad`). The live builder and the passive mode
+  (`core.builder.passive`) both ask it.
   `BuilderHooks.revisit` replaces the builder's revisit search settings (`hooked_config`).
 """
 
@@ -43,6 +45,7 @@ from island_msgs_py.types import (
 )
 
 from island_mapping.core.builder.config import BuilderConfig, RevisitConfig
+from island_mapping.core.builder.diagnostics import Refusal
 from island_mapping.core.builder.events import BuilderEvent, EventKind
 from island_mapping.core.builder.geometry import concat
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition
@@ -52,9 +55,9 @@ ExitFinder = Callable[[FloatArray, FloatArray, FloatArray, float | None], tuple[
 """(segments (N, 4), echo points (M, 2), driven paths (K, 4), arrival heading [rad] or None),
 all in the island frame [m] -> the island's exits (all unexplored)."""
 
-RevisitGate = Callable[[Recognition, PoseSnapshot, Island, bool], bool]
+RevisitGate = Callable[[Recognition, PoseSnapshot, Island, bool], Refusal | None]
 """(the proposed recognition, the robot's snapshot, the recognised island, from a star?) ->
-keep it?"""
+why it is refused, or None: keep it."""
 
 APPROACH_M = 5.0
 """The path the robot came along is taken back this far (free: it drove there) [m]."""
@@ -123,6 +126,18 @@ def arrival_heading(path: FloatArray, at: Pose2D | None = None,
     if math.hypot(float(far[0]), float(far[1])) < 1e-6:
         return None
     return math.atan2(float(far[1]), float(far[0]))
+
+
+def gate_refusal(hooks: BuilderHooks, rec: Recognition, snap: PoseSnapshot, island: Island,
+                 star: bool, approach: FloatArray, at: Pose2D) -> Refusal | None:
+    """The hooks' revisit gate on a proposed recognition `rec` of `island`, shown where the
+    robot came from (`arrival_heading` of its `approach` polyline, from `approach_path`, seen
+    from pose `at` in the island frame): why it is refused, or None (also without a gate)."""
+    gate = hooks.accept_revisit
+    if gate is None:
+        return None
+    came = arrival_heading(approach, at)
+    return gate(dataclasses.replace(rec, arrival_rad=came), snap, island, star)
 
 
 def _along(path: FloatArray, dist_m: float) -> FloatArray:

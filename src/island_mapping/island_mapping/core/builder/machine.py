@@ -12,7 +12,6 @@ and the events since the last call. docs/builder.md describes the decisions.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from enum import StrEnum
 
@@ -32,7 +31,7 @@ from island_msgs_py.types import (
 from island_mapping.core.builder import motion, star
 from island_mapping.core.builder.checks import localizes_back
 from island_mapping.core.builder.config import BuilderConfig, BuilderError
-from island_mapping.core.builder.diagnostics import Diagnostics, ProbeOutcome, Refusal
+from island_mapping.core.builder.diagnostics import Diagnostics, ProbeOutcome
 from island_mapping.core.builder.docking import Dock, dock_step
 from island_mapping.core.builder.epsilon import (
     EvaluateFn,
@@ -66,6 +65,7 @@ from island_mapping.core.builder.hooks import (
     exit_evidence,
     exit_updates,
     facing_exit,
+    gate_refusal,
     hooked_config,
     with_exits,
 )
@@ -512,13 +512,13 @@ class IslandBuilder:
     def _gate_allows(self, rec: Recognition, star: bool, end: Pose2D | None = None) -> bool:
         """The explorer's revisit gate (topological evidence) agrees, or there is none; it sees
         where the robot came from (the record ended at `end`, default rec.pose)."""
-        gate = self.hooks.accept_revisit
-        came = None if gate is None else arrival_heading(
-            approach_path(self._strategy, APPROACH_M), rec.pose if end is None else end)
-        if gate is None or gate(dataclasses.replace(rec, arrival_rad=came), self.snapshot(),
-                                self.ledger.island(rec.island_id), star):
+        refusal = gate_refusal(self.hooks, rec, self.snapshot(),
+                               self.ledger.island(rec.island_id), star,
+                               approach_path(self._strategy, APPROACH_M),
+                               rec.pose if end is None else end)
+        if refusal is None:
             return True
-        self.diagnostics.refuse(Refusal.TOPOLOGY)
+        self.diagnostics.refuse(refusal)
         return False
 
     def _revisit(self, rec: Recognition, legs_m: tuple[tuple[float, float], ...] = (),

@@ -16,17 +16,24 @@ and their counts. What a recording cannot do is replaced:
   small correction, enough inliers, within the coverage radius) restarts epsilon; a robot in no
   island tries the islands whose origin lies near by odometry, and (`place_recognition`) the
   place search of every island before it attempts a new one.
+- loop closure (with `hooks`, e.g. `core.explore.loop_closure_hooks`: exploration's): before
+  an attempt the `Recognizer` searches the known islands for the window's echoes as for a
+  star's, with the hooks' revisit settings, and the hooks' gate decides
+  (`passive_closure`); a recognition kept localizes the scan in that island. The Recognizer
+  knows each island's origin where it was last known: at its anchor with the odometry's
+  covariance then, and again at every trusted fix in it (as at a live dock), so the gate's
+  covariance is the one propagated since; islands are linked as the live ledger links them.
 
 A scan is decided once the `half_window_scans` scans after it have arrived (`on_scan`), or at
-`finish`. Results: per scan the island it was localized in and its pose there (`run`).
+`finish`. Results: per scan the island it was localized in and its pose there, the loop
+closures and their refusals (`run`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -34,7 +41,7 @@ import numpy.typing as npt
 from island_msgs_py.geometry import compose_poses, from_frame, relative_poses
 from island_msgs_py.types import Island, LineModel, ModelType, Pose2D
 
-from island_mapping.core.builder.config import BuilderConfig, BuilderError
+from island_mapping.core.builder.config import BuilderError
 from island_mapping.core.builder.diagnostics import Diagnostics
 from island_mapping.core.builder.epsilon import (
     EvaluateFn,
@@ -45,11 +52,29 @@ from island_mapping.core.builder.epsilon import (
     normalized_measures,
 )
 from island_mapping.core.builder.events import BuilderEvent, DismissReason, EventKind
+from island_mapping.core.builder.hooks import (
+    APPROACH_M,
+    BuilderHooks,
+    gate_refusal,
+    hooked_config,
+)
+from island_mapping.core.builder.passive_closure import (
+    PassiveRevisit,
+    approach_polyline,
+    closure_counts,
+    recognition_points,
+)
+from island_mapping.core.builder.passive_config import PassiveConfig, replace_builder
 from island_mapping.core.builder.places import PlaceSearch
-from island_mapping.core.builder.recognition import Recognizer
-from island_mapping.core.lines import LASER_LINE_FIT, point_segment_distance
+from island_mapping.core.builder.recognition import PoseSnapshot, Recognizer
+from island_mapping.core.lines import point_segment_distance
 from island_mapping.core.localize import LocalizeConfig, localize
-from island_mapping.core.measure import MeasureConfig
+
+__all__ = [
+    "MIN_FIX_POINTS", "IslandRun", "Localizer", "PassiveAttempt", "PassiveBuilder",
+    "PassiveConfig", "PassiveIsland", "ScanFix", "core_localizer", "fix_ok", "inlier_fraction",
+    "replace_builder", "voxel_thin",
+]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -83,107 +108,6 @@ def core_localizer(config: LocalizeConfig | None = None) -> Localizer:
                        float(res.matched_fraction))
 
     return run
-
-
-def _laser_builder() -> BuilderConfig:
-    """Eq. 3 as the live builder's, with a laser's line fit and measure (a laser sees walls at
-    any incidence and reliably farther than a sonar) and Dudek-MacKenzie localization."""
-    return BuilderConfig(line_fit=LASER_LINE_FIT,
-                         measure=MeasureConfig(reflect_deg=80.0, max_range_m=10.0),
-                         localize=LocalizeConfig())
-
-
-@dataclass(frozen=True)
-class PassiveConfig:
-    """The passive mode (single source of its defaults)."""
-
-    half_window_scans: int = field(
-        default=2,
-        metadata={"help": "an island model accumulates the scans this many steps before and "
-                  "after the anchor scan [-]"},
-    )
-    align_window: bool = field(
-        default=True,
-        metadata={"help": "place each window scan by localizing it against the anchor scan's "
-                  "own line model (False: by odometry only) [bool]"},
-    )
-    voxel_m: float = field(
-        default=0.05,
-        metadata={"help": "accumulated island points are thinned to one per grid cell of this "
-                  "side before line fitting (0 = keep all) [m]"},
-    )
-    retry_scans: int = field(
-        default=1, metadata={"help": "scans to skip after a failed attempt [-]"}
-    )
-    coverage_radius_m: float = field(
-        default=3.0,
-        metadata={"help": "a scan is inside an island when its localized position is within "
-                  "this distance of the island origin [m]"},
-    )
-    relocalize_radius_m: float = field(
-        default=2.5,
-        metadata={"help": "islands whose origin is within this odometric distance (plus "
-                  "epsilon) are tried when the robot is in no island [m]"},
-    )
-    max_residual_m: float = field(
-        default=0.2,
-        metadata={"help": "largest RMS residual of the matched points of a fix (a sanity bound; "
-                  "the inlier test decides) [m]"},
-    )
-    min_matched_fraction: float = field(
-        default=0.6, metadata={"help": "smallest fraction of scan points matched to the model [-]"}
-    )
-    inlier_dist_m: float = field(
-        default=0.1, metadata={"help": "a scan point within this of the model is an inlier [m]"}
-    )
-    min_inlier_fraction: float = field(
-        default=0.6,
-        metadata={"help": "a fix needs at least this fraction of scan points as inliers "
-                  "(0 = no inlier test) [-]"},
-    )
-    max_correction_m: float = field(
-        default=0.6,
-        metadata={"help": "a fix may move the odometry guess at most this far [m]"},
-    )
-    max_correction_deg: float = field(
-        default=15.0, metadata={"help": "a fix may turn the odometry guess at most this much [deg]"}
-    )
-    place_recognition: bool = field(
-        default=False,
-        metadata={"help": "when lost, search every island's model for the scan (a correlative "
-                  "search around the island origin) before attempting a new island [bool]"},
-    )
-    recognition_min_inliers: float = field(
-        default=0.8,
-        metadata={"help": "a recognized place needs at least this fraction of scan points "
-                  "within inlier_dist_m of the island's model after the fix [-]"},
-    )
-    recognition_margin: float = field(
-        default=0.1,
-        metadata={"help": "the best search score must beat the best pose at least 1 m or 30 deg "
-                  "away by this much (else the place is ambiguous, e.g. a corridor) [-]"},
-    )
-    search_range_m: float = field(
-        default=10.0,
-        metadata={"help": "the place search's distance field reaches this far beyond the "
-                  "coverage radius (the sensor's range) [m]"},
-    )
-    builder: BuilderConfig = field(
-        default_factory=_laser_builder,
-        metadata={"help": "eq. 3 (E_min, T_i, bound floor), line fit, measure, localization: "
-                  "the live builder's core with a laser's fit and measure"},
-    )
-
-    def __post_init__(self) -> None:
-        for name in ("coverage_radius_m", "relocalize_radius_m", "max_residual_m",
-                     "max_correction_m", "max_correction_deg", "search_range_m"):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
-                raise BuilderError(f"PassiveConfig.{name}: expected a number > 0, got {v!r}")
-        if not 0.0 <= self.min_matched_fraction <= 1.0:
-            raise BuilderError("PassiveConfig.min_matched_fraction: expected a value in [0, 1]")
-        if self.half_window_scans < 0 or self.retry_scans < 0:
-            raise BuilderError("PassiveConfig: half_window_scans and retry_scans must be >= 0")
 
 
 @dataclass(frozen=True)
@@ -224,6 +148,8 @@ class IslandRun:
     scan_pose: FloatArray
     epsilon_m: FloatArray
     config: PassiveConfig
+    revisits: tuple[PassiveRevisit, ...] = ()
+    loop_closure: dict[str, Any] | None = None  # `closure_counts`; None: no loop closure
 
 
 def voxel_thin(points: FloatArray, cell_m: float) -> FloatArray:
@@ -283,13 +209,24 @@ class PassiveBuilder:
     order, then `finish()`; `run()` gives the results."""
 
     def __init__(self, config: PassiveConfig | None = None, *, localizer: Localizer | None = None,
-                 fit: FitFn | None = None, evaluate: EvaluateFn | None = None) -> None:
+                 fit: FitFn | None = None, evaluate: EvaluateFn | None = None,
+                 hooks: BuilderHooks | None = None) -> None:
         self.config = config if config is not None else PassiveConfig()
         cfg = self.config
         self.measures = Measures.of(cfg.builder, fit, evaluate)
         self.localize = localizer if localizer is not None else core_localizer(cfg.builder.localize)
         self.diagnostics = Diagnostics()
-        self.recognizer = Recognizer(cfg.builder, self.diagnostics)
+        # Loop closure (module docstring) only with hooks: without, the islands near by
+        # odometry and the place search are all the passive mode re-enters.
+        self.hooks = hooks
+        self.recognizer = Recognizer(
+            cfg.builder if hooks is None else hooked_config(cfg.builder, hooks), self.diagnostics)
+        self.revisits: list[PassiveRevisit] = []
+        self._tried = 0  # loop-closure recognitions tried
+        self._path_m = 0.0  # odometric path [m]
+        self._last: tuple[int, float] | None = None  # the island last localized in, path then
+        self._seen_at: dict[int, float] = {}  # path when each island was last localized in [m]
+        self._reentries = [0, 0]  # by the tracker (islands near by odometry): all, after a loop
         self.events: list[BuilderEvent] = []
         self.islands: list[PassiveIsland] = []
         self.attempts: list[PassiveAttempt] = []
@@ -339,10 +276,14 @@ class PassiveBuilder:
     def run(self) -> IslandRun:
         """The islands, attempts and per-scan localizations so far."""
         n = len(self._scan_island)
+        closure = None if self.hooks is None else closure_counts(
+            self.diagnostics, self._tried, self.revisits,
+            (self._reentries[0], self._reentries[1]))
         return IslandRun(tuple(self.islands), tuple(self.attempts),
                          np.asarray(self._scan_island, dtype=np.int64),
                          np.asarray(self._scan_pose, dtype=np.float64).reshape(n, 3),
-                         np.asarray(self._eps_log, dtype=np.float64), self.config)
+                         np.asarray(self._eps_log, dtype=np.float64), self.config,
+                         tuple(self.revisits), closure)
 
     # ----- the decision of one scan -----
 
@@ -355,7 +296,7 @@ class PassiveBuilder:
         self._scan_pose.append(np.full(3, np.nan))
         fixed = self._locate(i, inc)
         for pose, cov in scan.odometry:
-            self._track.update(pose, cov)
+            self._path_m += self._track.update(pose, cov)
         self._eps_log.append(self._track.rel.epsilon_m)
         if fixed is not None:
             self._record(i, self._current, fixed)
@@ -381,9 +322,21 @@ class PassiveBuilder:
             for _, k, guess in self.recognizer.near(odom, radius):
                 fixed = self._try_fix(k, i, guess)
                 if fixed is not None:
+                    self._count_reentry(k)
                     self._current = k
                     break
         return fixed
+
+    def _count_reentry(self, k: int) -> None:
+        """The tracker re-entered island k (near by odometry, a small correction): counted, and
+        whether the robot had gone a loop's length (revisit.min_loop_m) since it was last there
+        (a loop closed without the recognizer's search and gate)."""
+        if self.hooks is None:
+            return
+        self._reentries[0] += 1
+        since = self._path_m - self._seen_at.get(k, self._path_m)
+        if since >= self.recognizer.config.revisit.min_loop_m:
+            self._reentries[1] += 1
 
     def _try_fix(self, k: int, i: int, guess: FloatArray) -> FloatArray | None:
         """Scan i localized in island k from `guess` (island frame), if trusted and within the
@@ -400,17 +353,71 @@ class PassiveBuilder:
     def _record(self, i: int, island: int, pose: FloatArray) -> None:
         self._current, self._pose = island, pose
         self._scan_island[i], self._scan_pose[i] = island, pose
+        if self.hooks is not None and i == self._decided:
+            # The robot knows where the island's origin is now (a live dock's remember).
+            origin = Pose2D(*(float(v) for v in self._scans[i].odom)).compose(
+                Pose2D(*(float(v) for v in pose)).inverse())
+            self.recognizer.remember(island, origin, self._track.cov.copy())
+            self._last = (island, self._path_m)
+            self._seen_at[island] = self._path_m
 
     def _lost(self, i: int) -> None:
-        """Scan i in no island, epsilon past E_min: a known place (place search), else an
-        attempt at a new island."""
-        if self.config.place_recognition and self.islands:
+        """Scan i in no island, epsilon past E_min: a known place (loop closure, with hooks;
+        the place search), else an attempt at a new island."""
+        found = self._close_loop(i) if self.hooks is not None and self.islands else None
+        if found is None and self.config.place_recognition and self.islands:
             found = self._recognize(i)
-            if found is not None:
-                self._record(i, *found)
-                self._track.rel.reset()
-                return
+        if found is not None:
+            self._record(i, *found)
+            self._track.rel.reset()
+            return
         self._attempt(i)
+
+    def _close_loop(self, i: int) -> tuple[int, FloatArray] | None:
+        """Live exploration's loop closure at scan i (module docstring): the island and the
+        scan's pose in its frame, or None (refusals counted)."""
+        assert self.hooks is not None
+        rc = self.recognizer.config.revisit
+        scan = self._scans[i]
+        window = [(self._scans[j].points, self._scans[j].odom) for j in self._window_order(i)]
+        pts = recognition_points(window, scan.odom, rc)
+        if pts.shape[0] < rc.min_points:
+            return None
+        self._tried += 1
+        at = Pose2D(*(float(v) for v in scan.odom))
+        snap = self._snapshot(at)
+        built = [isl.island for isl in self.islands]
+        rec = self.recognizer.recognize(pts, at, snap, built, star=True)
+        if rec is None:
+            return None
+        odoms = [self._scans[j].odom for j in sorted(self._scans) if j <= i]
+        refusal = gate_refusal(self.hooks, rec, snap, built[rec.island_id], True,
+                               approach_polyline(odoms, APPROACH_M), rec.pose)
+        if refusal is not None:
+            self.diagnostics.refuse(refusal)
+            return None
+        pose = rec.pose.as_array()
+        self._link_from_last(rec.island_id, at.compose(rec.pose.inverse()))
+        self.revisits.append(PassiveRevisit(i, rec.island_id, pose, rec.mahalanobis2,
+                                            rec.residual_m))
+        self._emit(EventKind.ISLAND_REVISITED, scan.t_s, at, self._track.rel.epsilon_m,
+                   revisited_island_id=rec.island_id, island_pose=rec.pose,
+                   residual_m=rec.residual_m)
+        return rec.island_id, pose
+
+    def _snapshot(self, odom: Pose2D) -> PoseSnapshot:
+        """The robot's state for a recognition (the live builder's `snapshot`)."""
+        track = self._track
+        last, left_m = (None, 0.0) if self._last is None else self._last
+        return PoseSnapshot(odom, track.cov.copy(), track.rel.epsilon_m,
+                            track.rel.heading_sigma_rad, last, self._path_m - left_m)
+
+    def _link_from_last(self, target: int, origin_odom: Pose2D) -> None:
+        """Link the island last localized in to `target` (origin at origin_odom) with the
+        error since, as the live ledger links an island to the last one."""
+        if self._last is not None and self._last[0] != target:
+            self.recognizer.link(self._last[0], target, origin_odom,
+                                 self._track.rel.epsilon_m, self._track.rel.heading_sigma_rad)
 
     def _recognize(self, i: int) -> tuple[int, FloatArray] | None:
         """Place recognition for a lost robot: the island and island-frame pose of scan i, or
@@ -474,8 +481,10 @@ class PassiveBuilder:
     def _add_island(self, isl: PassiveIsland) -> None:
         cfg = self.config
         self.islands.append(isl)
-        self.recognizer.remember(isl.island.id, Pose2D(*(float(v) for v in isl.anchor_odom)),
-                                 np.zeros((3, 3)))
+        origin = Pose2D(*(float(v) for v in isl.anchor_odom))
+        self._link_from_last(isl.island.id, origin)
+        # Its origin is the anchor scan: known there, with the odometry's covariance then.
+        self.recognizer.remember(isl.island.id, origin, self._track.cov.copy())
         if cfg.place_recognition:
             self.recognizer.add_place_search(isl.island.id, PlaceSearch(
                 isl.island.model, cfg.coverage_radius_m + cfg.search_range_m,
@@ -485,9 +494,7 @@ class PassiveBuilder:
         """Line model of the scans around `anchor` in the anchor's frame, and each scan's pose
         (odometry, refined against the anchor scan's own line model)."""
         cfg = self.config
-        order = [anchor]
-        for d in range(1, cfg.half_window_scans + 1):
-            order += [j for j in (anchor + d, anchor - d) if j in self._scans]
+        order = self._window_order(anchor)
         placed: list[tuple[int, FloatArray]] = []
         clouds: list[FloatArray] = []
         anchor_model: LineModel | None = None
@@ -506,12 +513,14 @@ class PassiveBuilder:
         all_pts = np.concatenate(clouds) if clouds else np.zeros((0, 2))
         return self.measures.fit(voxel_thin(all_pts, cfg.voxel_m)), placed
 
+    def _window_order(self, anchor: int) -> list[int]:
+        """The scans of the window around `anchor`: the anchor, then outward (after, before)."""
+        order = [anchor]
+        for d in range(1, self.config.half_window_scans + 1):
+            order += [j for j in (anchor + d, anchor - d) if j in self._scans]
+        return order
+
     def _emit(self, kind: EventKind, t_s: float, odom: Pose2D, epsilon_m: float,
               **kw: object) -> None:
         self.diagnostics.counts[kind] += 1
         self.events.append(BuilderEvent(kind, t_s, odom, epsilon_m, **kw))  # type: ignore[arg-type]
-
-
-def replace_builder(config: PassiveConfig, **changes: Any) -> PassiveConfig:
-    """`config` with fields of its BuilderConfig replaced (e.g. line_fit, measure)."""
-    return dataclasses.replace(config, builder=dataclasses.replace(config.builder, **changes))

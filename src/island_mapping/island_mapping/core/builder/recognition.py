@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import OrderedDict
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
@@ -25,6 +26,7 @@ from island_mapping.core.builder.checks import localizes_back
 from island_mapping.core.builder.config import BuilderConfig
 from island_mapping.core.builder.diagnostics import Diagnostics, Refusal
 from island_mapping.core.builder.geometry import drive_clear, from_frame, to_frame
+from island_mapping.core.builder.inlier_field import InlierField
 from island_mapping.core.builder.links import Link, LinkGraph
 from island_mapping.core.builder.places import PlaceSearch
 from island_mapping.core.builder.uncertainty import (
@@ -38,6 +40,8 @@ from island_mapping.core.localize import localize
 
 # Guesses scored per batch of the grid search (bounds the (guesses x points x walls) array).
 _GUESSES_PER_BATCH = 40
+# Inlier grids kept for the islands searched last (each at most 4 MB, typically < 1 MB).
+_FIELDS_KEPT = 64
 
 
 def _ignore(_reason: Refusal) -> None:
@@ -108,6 +112,8 @@ class Recognizer:
         # Where the robot was (odometry) when each island's covariance was taken.
         self._cov_at: dict[int, Pose2D] = {}
         self._places: dict[int, PlaceSearch] = {}
+        # the inlier tests of the islands searched last (most recent last; bounded memory)
+        self._fields: OrderedDict[int, InlierField] = OrderedDict()
         self.links = LinkGraph()
 
     # ----- what is known -----
@@ -412,7 +418,7 @@ class Recognizer:
         """The best-scoring distinct guesses of a grid around `est` (the fraction of points
         within inlier_m of the model), at most refine_guesses of them."""
         rc = self.config.revisit
-        segs = island.model.segments
+        inliers = self._inlier_field(island)
         n = math.floor(win.radius_m / win.step_m + 1e-9)
         ticks = np.arange(-n, n + 1) * win.step_m
         gx, gy = np.meshgrid(ticks, ticks)
@@ -428,8 +434,7 @@ class Recognizer:
             base = rot + np.array([est.x, est.y])
             for chunk in np.array_split(offs, max(1, len(offs) // _GUESSES_PER_BATCH)):
                 world = (base[None, :, :] + chunk[:, None, :]).reshape(-1, 2)
-                d = point_segment_distance(world, segs).min(axis=1).reshape(len(chunk), -1)
-                score = np.mean(d <= rc.inlier_m, axis=1)
+                score = np.mean(inliers.within(world).reshape(len(chunk), -1), axis=1)
                 for k in range(len(chunk)):
                     guesses.append(
                         (float(score[k]), Pose2D(est.x + chunk[k, 0], est.y + chunk[k, 1], th))
@@ -442,6 +447,20 @@ class Recognizer:
             if len(chosen) >= rc.refine_guesses:
                 break
         return chosen
+
+    def _inlier_field(self, island: Island) -> InlierField:
+        """The inlier test of island's model at revisit.inlier_m (made once per model)."""
+        segs = island.model.segments
+        got = self._fields.get(island.id)
+        if got is None or got.inlier_m != self.config.revisit.inlier_m or not np.array_equal(
+            got.segments, segs
+        ):
+            got = InlierField(segs, self.config.revisit.inlier_m)
+        self._fields[island.id] = got
+        self._fields.move_to_end(island.id)
+        while len(self._fields) > _FIELDS_KEPT:
+            self._fields.popitem(last=False)
+        return got
 
     def _refine(self, island: Island, pts: FloatArray, est: Pose2D, win: _Window,
                 refuse: Callable[[Refusal], None]) -> list[Recognition]:

@@ -10,8 +10,9 @@ Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public
 - `plan_departure`, `DeparturePlan` (departure through an exit's gate);
 - `Explorer`, `ExplorerCommand`, `ExplorerState`, `ExplorerStatus`, `Docked`, `Handover`,
   `Abort` (mission: one step per scan);
-- `explorer_hooks`, `arrival_agrees` (the builder hooks an explorer installs; the loop
-  closure's topological evidence).
+- `explorer_hooks`, `arrival_agrees`, `loop_closure_gate`, `loop_closure_hooks` (the builder
+  hooks an explorer installs; the loop closure's gate and topological evidence; the loop
+  closure alone, as a recording's passive mode installs it).
 """
 
 from island_mapping.core.explore.config import (
@@ -28,7 +29,12 @@ from island_mapping.core.explore.exits import (
     free_lanes,
     gate,
 )
-from island_mapping.core.explore.hooks import arrival_agrees, explorer_hooks
+from island_mapping.core.explore.hooks import (
+    arrival_agrees,
+    explorer_hooks,
+    loop_closure_gate,
+    loop_closure_hooks,
+)
 from island_mapping.core.explore.mission import (
     Abort,
     Docked,
@@ -47,9 +53,31 @@ from island_mapping.core.explore.planner import (
 )
 
 __all__ = [
-    "Abort", "DeparturePlan", "Docked", "ExitConfig", "ExitEvidence", "ExploreError",
-    "Explorer", "ExplorerCommand", "ExplorerConfig", "ExplorerState", "ExplorerStatus",
-    "Handover", "NoveltyConfig", "Target", "arrival_agrees", "arrival_exit", "explorer_hooks",
-    "find_exits", "free_lanes", "gate", "known_space_costs", "nearest_unexplored",
-    "plan_departure", "route_edges", "unexplored_count",
+    "Abort",
+    "DeparturePlan",
+    "Docked",
+    "ExitConfig",
+    "ExitEvidence",
+    "ExploreError",
+    "Explorer",
+    "ExplorerCommand",
+    "ExplorerConfig",
+    "ExplorerState",
+    "ExplorerStatus",
+    "Handover",
+    "NoveltyConfig",
+    "Target",
+    "arrival_agrees",
+    "arrival_exit",
+    "explorer_hooks",
+    "find_exits",
+    "free_lanes",
+    "gate",
+    "known_space_costs",
+    "loop_closure_gate",
+    "loop_closure_hooks",
+    "nearest_unexplored",
+    "plan_departure",
+    "route_edges",
+    "unexplored_count",
 ]

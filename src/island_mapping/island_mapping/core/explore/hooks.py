@@ -12,6 +12,8 @@ its state (explored by an edge from elsewhere too: a closure missed earlier leav
 at one place, and the robot may come from the other). An arrival of unknown direction at an
 island with exits is refused (no evidence for it: a star's corridor points fitted a junction's
 model 6 m along its corridor once); an island without exits gives no evidence either way.
+`loop_closure_gate` is the gate, `loop_closure_hooks` the loop closure alone (a recording's
+passive mode installs it: the same search and gate as live exploration).
 """
 
 from __future__ import annotations
@@ -21,7 +23,8 @@ from collections.abc import Callable
 
 from island_msgs_py.types import Exit, FloatArray, Island
 
-from island_mapping.core.builder.hooks import BuilderHooks, facing_exit
+from island_mapping.core.builder.diagnostics import Refusal
+from island_mapping.core.builder.hooks import BuilderHooks, RevisitGate, facing_exit
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition
 from island_mapping.core.explore.config import ExplorerConfig
 from island_mapping.core.explore.exits import ExitEvidence, find_exits
@@ -38,6 +41,28 @@ def arrival_agrees(island: Island, arrival_rad: float | None, within_deg: float)
     return facing_exit(island, arrival_rad, within_deg) is not None
 
 
+def loop_closure_gate(cfg: ExplorerConfig, graph: Callable[[], TopoGraph] | None = None
+                      ) -> RevisitGate:
+    """The loop-closure gate (module docstring): why a proposed recognition is refused
+    (`Refusal.NOT_AT_PLACE`, `OUTSIDE_UNCERTAINTY`, `TOPOLOGY`), or None to keep it. `graph`
+    returns the latest map (the exits' states); None: the island as the builder has it."""
+
+    def gate(rec: Recognition, snap: PoseSnapshot, island: Island, star: bool
+             ) -> Refusal | None:
+        del star, snap
+        if math.hypot(rec.pose.x, rec.pose.y) > cfg.revisit_near_m:
+            return Refusal.NOT_AT_PLACE  # seen from the next place, not at its own
+        if rec.mahalanobis2 is not None and rec.mahalanobis2 > cfg.revisit_max_mahalanobis2:
+            return Refusal.OUTSIDE_UNCERTAINTY
+        g = None if graph is None else graph()
+        known = g.get_island(island.id) if g is not None and island.id in g else island
+        if not arrival_agrees(known, rec.arrival_rad, cfg.exit.arrival_match_deg):
+            return Refusal.TOPOLOGY
+        return None
+
+    return gate
+
+
 def explorer_hooks(cfg: ExplorerConfig, graph: Callable[[], TopoGraph]) -> BuilderHooks:
     """Managed mode with `find_exits` (cfg.exit), cfg.revisit's search and the loop-closure
     gate (module docstring); `graph` returns the latest map (the exits' states)."""
@@ -46,16 +71,14 @@ def explorer_hooks(cfg: ExplorerConfig, graph: Callable[[], TopoGraph]) -> Build
               arrival_rad: float | None) -> tuple[Exit, ...]:
         return find_exits(ExitEvidence(segments, points, driven, arrival_rad), cfg.exit)
 
-    def gate(rec: Recognition, snap: PoseSnapshot, island: Island, star: bool) -> bool:
-        del star
-        if math.hypot(rec.pose.x, rec.pose.y) > cfg.revisit_near_m:
-            return False  # seen from the next place, not at its own
-        if rec.mahalanobis2 is not None and rec.mahalanobis2 > cfg.revisit_max_mahalanobis2:
-            return False
-        g = graph()
-        known = g.get_island(island.id) if island.id in g else island
-        del snap
-        return arrival_agrees(known, rec.arrival_rad, cfg.exit.arrival_match_deg)
+    return BuilderHooks(managed=True, find_exits=exits,
+                        accept_revisit=loop_closure_gate(cfg, graph),
+                        arrival_match_deg=cfg.exit.arrival_match_deg, revisit=cfg.revisit)
 
-    return BuilderHooks(managed=True, find_exits=exits, accept_revisit=gate,
+
+def loop_closure_hooks(cfg: ExplorerConfig) -> BuilderHooks:
+    """Exploration's loop closure alone (its revisit search and `loop_closure_gate`), without
+    the managed mode and exits: what the passive mode of a recording installs to close loops
+    as live exploration does (`core.builder.passive.PassiveBuilder`)."""
+    return BuilderHooks(accept_revisit=loop_closure_gate(cfg),
                         arrival_match_deg=cfg.exit.arrival_match_deg, revisit=cfg.revisit)
