@@ -39,7 +39,8 @@ def main() -> None:
                     f.write(json.dumps(row) + "\n")
                 print(json.dumps({k: row[k] for k in (
                     "world", "policy", "seed", "covered_places", "known_places", "places",
-                    "covered_junctions", "junctions", "islands", "islands_per_place", "false_merges", "missed_closures",
+                    "covered_junctions", "junctions", "islands", "islands_per_place",
+                    "false_merges", "missed_closures",
                     "map_cycle_rank", "world_cycle_rank", "route_success_rate",
                     "route_length_ratio_mean", "wall_contacts", "false_arrivals",
                     "ended_by_itself", "sim_seconds", "explore_wall_s", "load_avg_1m")}),

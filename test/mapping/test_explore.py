@@ -185,7 +185,7 @@ def test_a_look_point_beyond_the_radius_is_new_space() -> None:
         (0, 1): NoveltyConfig().penalty_m}
     # island 1's exit looks 4 m to the left of it: 4 m from the edge's path at island 1
     assert (1, 1) in known_space_costs(g, 0, NoveltyConfig(radius_m=4.5))
-    with pytest.raises(ExploreError, match="NoveltyConfig.radius_m"):
+    with pytest.raises(ExploreError, match=r"NoveltyConfig\.radius_m"):
         NoveltyConfig(radius_m=float("nan"))
 
 
