@@ -137,6 +137,22 @@ class NoveltyConfig:
 class ExplorerConfig:
     """The explorer's mission (`core.explore.mission`)."""
 
+    stuck_s: float = field(
+        default=120.0,
+        metadata={"help": "the builder's exploration of an exit is stopped as past exit_cap_s "
+                          "when the robot's odometric position has stayed within stuck_m for "
+                          "this long [s]"},
+    )
+    stuck_m: float = field(
+        default=0.5,
+        metadata={"help": "see stuck_s: moving less than this far is no progress [m]"},
+    )
+    return_max_shift_m: float = field(
+        default=1.0,
+        metadata={"help": "back at the island left, a localization farther than this from "
+                          "where odometry says the robot is counts as not converged (the robot "
+                          "is then lost, not docked) [m]"},
+    )
     exit_cap_s: float = field(
         default=300.0,
         metadata={"help": "sim time the builder may spend exploring one exit before the explorer "
@@ -250,8 +266,10 @@ class ExplorerConfig:
     )
 
     def __post_init__(self) -> None:
-        _check_numbers(self, ("exit_cap_s", "door_max_width_m", "door_through_m", "map_wait_s",
-                              "look_buffer_s", "revisit_near_m", "revisit_max_mahalanobis2"),
+        _check_numbers(self, ("exit_cap_s", "stuck_s", "stuck_m", "return_max_shift_m",
+                              "door_max_width_m",
+                              "door_through_m", "map_wait_s", "look_buffer_s", "revisit_near_m",
+                              "revisit_max_mahalanobis2"),
                        ("depart_min_free_m", "lane_snap_m"))
         _check_numbers(self, ("side_min_width_m", "side_near_island_m", "side_merge_m",
                               "side_merge_deg", "side_chain_m", "side_search_m"),

@@ -20,6 +20,7 @@ handover by no exit the builder knows, with everything driven from the island as
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass
@@ -396,6 +397,7 @@ class Explorer:
         self._follower = ControlStrategy(())
         t0 = self._sense.t_s
         watch = OpeningWatch(self.cfg, self._since_dock.strategy())
+        stuck = _StuckWatch(self.cfg.stuck_s, self.cfg.stuck_m, self._sense)
         edges: list[Edge] = []
         while True:
             for e in self._events:
@@ -416,7 +418,7 @@ class Explorer:
             if self.cfg.side_exits:
                 watch.update(perceive(self._sense.ranges_m, self._sense.angles_rad,
                                       self.perception), self._follower, self._sense.odom.theta)
-            if self._sense.t_s - t0 > self.cfg.exit_cap_s:
+            if self._sense.t_s - t0 > self.cfg.exit_cap_s or stuck.update(self._sense):
                 self._requests.append(Abort())
             yield None
 
@@ -473,7 +475,8 @@ class Explorer:
             # rarely ends on the origin, and a fit searched from the origin instead can land
             # in a wrong basin yet look trusted (a false arrival).
             near = self._sense.odom.relative_to(here.origin_odom)
-            fix = yield from localize_and_dock(d, island, near, self._fixed)
+            fix = yield from localize_and_dock(d, island, near, self._fixed,
+                                               self.cfg.return_max_shift_m)
         except RouteTimeoutError:
             fix = None
         if exit_index is not None:
@@ -503,6 +506,20 @@ class Explorer:
         self._blocked.add((island_id, exit_index))
         self.counts["exits_blocked"] += 1
         self._requests.append(ExitUpdate(island_id, exit_index, ExitState.BLOCKED))
+
+
+class _StuckWatch:
+    """True once the odometric position has stayed within `radius_m` of where it was for
+    `window_s` (a star turns in place for less; a robot pushing at a door jamb does not)."""
+
+    def __init__(self, window_s: float, radius_m: float, sense: Sense) -> None:
+        self.window_s, self.radius_m = window_s, radius_m
+        self._since, self._at = sense.t_s, sense.odom
+
+    def update(self, sense: Sense) -> bool:
+        if math.hypot(sense.odom.x - self._at.x, sense.odom.y - self._at.y) > self.radius_m:
+            self._since, self._at = sense.t_s, sense.odom
+        return sense.t_s - self._since >= self.window_s
 
 
 def _exit(island: Island, index: int) -> Exit:

@@ -38,14 +38,16 @@ FixHook = Callable[[Fix], None]
 
 
 def localize_multi(
-    island: Island, points_robot: FloatArray, estimate: Pose2D, cfg: NavigateConfig
+    island: Island, points_robot: FloatArray, estimate: Pose2D, cfg: NavigateConfig,
+    max_shift_m: float = math.inf,
 ) -> tuple[LocalizationResult, bool]:
     """Localize from initial guesses around `estimate`; (best result, trusted).
 
     The best result is the converged one with the smallest residual (any result when none
     converged); trusted = it converged with a residual below `max_residual_m`. A fit whose
-    heading left the estimate's by more than `max_turn_deg`, or that constrains the position
-    less than `min_fit_constraint`, counts as not converged.
+    heading left the estimate's by more than `max_turn_deg`, whose position left it by more
+    than `max_shift_m` [m], or that constrains the position less than `min_fit_constraint`,
+    counts as not converged.
     """
     r = cfg.search_radius_m
     n = math.floor(r / cfg.search_step_m + 1e-9)
@@ -62,7 +64,8 @@ def localize_multi(
         init = Pose2D(estimate.x + dx, estimate.y + dy, wrap_angle(estimate.theta + dth))
         res = localize(island.model, points_robot, init, cfg.localize)
         turned = abs(wrap_angle(res.pose.theta - estimate.theta)) > math.radians(cfg.max_turn_deg)
-        if (turned or res.constraint < cfg.min_fit_constraint) and res.converged:
+        shifted = math.hypot(res.pose.x - estimate.x, res.pose.y - estimate.y) > max_shift_m
+        if (turned or shifted or res.constraint < cfg.min_fit_constraint) and res.converged:
             res = replace(res, converged=False)
         if best is None or (res.converged, -res.residual_m) > (best.converged, -best.residual_m):
             best = res
@@ -94,7 +97,8 @@ def unconstrained_axis_rad(island: Island, points_robot: FloatArray, pose: Pose2
 
 
 def localize_and_dock(
-    d: Drive, island: Island, estimate: Pose2D, on_fix: FixHook | None = None
+    d: Drive, island: Island, estimate: Pose2D, on_fix: FixHook | None = None,
+    max_shift_m: float = math.inf,
 ) -> Generator[Command, None, Fix]:
     """Localize in the island from the estimate (the robot's pose in its frame), dock at its
     origin, and return the arrival's fix.
@@ -102,11 +106,14 @@ def localize_and_dock(
     The fix is the FIRST localization, or when that is not trusted the one the search along
     the hallway ended with (the one that says whether the robot found the island); `on_fix`
     sees it before docking starts. Docking (drive onto the origin, look again) does not change
-    it; it stops when a look is not trusted."""
+    it; it stops when a look is not trusted. A finite `max_shift_m` [m] says the estimate is
+    known that well (odometry since the island, not a route's end): a fit farther from it is
+    not trusted, and there is no search along the hallway (it would find the far basin)."""
     c = d.cfg
     pts = yield from look_around(d)
-    res, trusted = localize_multi(island, pts, estimate, c)
-    if not trusted and c.axis_search_step_m > 0 and c.axis_search_steps > 0:
+    res, trusted = localize_multi(island, pts, estimate, c, max_shift_m)
+    searchable = math.isinf(max_shift_m) and c.axis_search_step_m > 0 and c.axis_search_steps > 0
+    if not trusted and searchable:
         # Search from the fit nearest the estimate: the smallest residual may be a wrong
         # heading basin.
         if pts.shape[0] >= c.sparse_look_points:

@@ -145,7 +145,8 @@ def go_to(d: Drive, target_odom: Pose2D) -> Motion:
 
 
 def go_along_hall(d: Drive, distance_m: float) -> Motion:
-    """Drive distance_m of odometric travel forward, centred in the hallway by the sonar."""
+    """Drive distance_m of odometric travel forward, centred in the hallway by the sonar;
+    stop early at a wall ahead (front range) or when the motion is blocked."""
     c = d.cfg
     travelled = 0.0
     last = d.sense.odom
@@ -173,7 +174,8 @@ def go_along_hall(d: Drive, distance_m: float) -> Motion:
         err = wrap_angle(hold + approach - o.theta)
         remaining = distance_m - travelled
         v = min(c.go_speed_mps, _APPROACH_GAIN_PER_S * remaining + _GO_FLOOR_MPS)
-        yield from step(d, v, _turn_rate(d, err))
+        if (yield from step(d, v, _turn_rate(d, err))):
+            break  # a wall the sonar missed is in the way (a door jamb beside): stop here
         now = d.sense.odom
         travelled += math.hypot(now.x - last.x, now.y - last.y)
         last = now
