@@ -130,12 +130,7 @@ class MapEvaluation:
     world_cycle_rank: int
     routes: tuple[RouteLength, ...]
     place_xy: tuple[tuple[str, float, float], ...]  # per place: kind, x [m], y [m]
-    known: tuple[bool, ...] = ()  # per place: covered, or a side exit opens there
-
-    @property
-    def known_flags(self) -> tuple[bool, ...]:
-        """Per place: known to the map (covered when `known` was not measured)."""
-        return self.known if self.known else self.covered
+    known: tuple[bool, ...]  # per place: covered, or a side exit opens there
 
     @property
     def junction_flags(self) -> tuple[bool, ...]:
@@ -198,8 +193,8 @@ class MapEvaluation:
             "covered_junctions": sum(c and j for c, j in zip(self.covered, self.junction_flags,
                                                              strict=True)),
             "coverage": num(self.coverage),
-            "known_places": sum(self.known_flags),
-            "known_junctions": sum(k and j for k, j in zip(self.known_flags, self.junction_flags,
+            "known_places": sum(self.known),
+            "known_junctions": sum(k and j for k, j in zip(self.known, self.junction_flags,
                                                            strict=True)),
             "junction_coverage": num(self.junction_coverage),
             "islands": self.islands,
@@ -226,7 +221,7 @@ class MapEvaluation:
             ],
             "place_list": [
                 {"kind": kind, "x": round(x, 2), "y": round(y, 2), "covered": cov, "known": kn}
-                for (kind, x, y), cov, kn in zip(self.place_xy, self.covered, self.known_flags,
+                for (kind, x, y), cov, kn in zip(self.place_xy, self.covered, self.known,
                                                  strict=True)
             ],
             "island_place": {str(k): v for k, v in sorted(self.island_place.items())},

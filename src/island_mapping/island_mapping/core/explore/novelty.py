@@ -72,8 +72,6 @@ def known_space_costs(graph: TopoGraph, start: int, cfg: NoveltyConfig
     frames = chained_frames(graph, start, cfg.chain_m)
     known = known_points(graph, frames, cfg.spacing_m)
     out: dict[tuple[int, int], float] = {}
-    if not len(known):
-        return out
     for iid, f in frames.items():
         for ex in graph.get_island(iid).exits:
             if ex.state is not ExitState.UNEXPLORED:
