@@ -27,11 +27,14 @@ def perceive_by_definition(ranges_m: np.ndarray, angles_rad: np.ndarray,
     x = np.where(ok, rr * np.cos(a), np.nan)
     y = np.where(ok, rr * np.sin(a), np.nan)
     front_free = float(r[int(np.argmin(np.abs(a)))])
-    front = front_free
+    front = cone = front_free
     in_path = ok & (np.nan_to_num(x) > 0)
     in_path &= np.abs(np.nan_to_num(y)) <= c.robot_radius_m + c.path_margin_m
     if np.any(in_path):
         front = min(front, float(np.min(x[in_path])))
+    ahead = in_path & (np.abs(a) <= math.radians(30.0))  # the cone of front_cone_m
+    if np.any(ahead):
+        cone = min(cone, float(np.min(x[ahead])))
     sides = []
     for sign in (1.0, -1.0):
         d = a - sign * math.pi / 2.0
@@ -47,7 +50,7 @@ def perceive_by_definition(ranges_m: np.ndarray, angles_rad: np.ndarray,
     wall = None
     if l_ang is not None and r_ang is not None and abs(l_ang - r_ang) <= math.radians(8.0):
         wall = 0.5 * (l_ang + r_ang)
-    return Perception(front, front_free, l_open, r_open, l_dist, r_dist, wall)
+    return Perception(front, front_free, l_open, r_open, l_dist, r_dist, wall, cone)
 
 
 @pytest.mark.parametrize("n", [12, 16, 24])

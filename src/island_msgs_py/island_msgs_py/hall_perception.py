@@ -23,6 +23,8 @@ from island_msgs_py.types import FloatArray
 
 # A wall fit needs points spread at least this far along the robot's x axis [m].
 MIN_FIT_SPAN_M = 0.2
+# Echoes within this bearing of the heading count for `front_cone_m` [rad].
+FRONT_CONE_RAD = math.radians(30.0)
 # Largest angle [rad] between the left and right wall fits of one hallway.
 PARALLEL_RAD = math.radians(8.0)
 
@@ -57,6 +59,9 @@ class Perception:
     left_dist_m: float  # perpendicular distance to the left wall fit [m], inf if none
     right_dist_m: float
     wall_angle_rad: float | None  # hallway direction in the robot frame from the wall fits
+    # nearest obstacle in the robot's path heard within FRONT_CONE_RAD of the heading [m]: a
+    # doorway's jamb beside the path, heard on an oblique transducer's axis, is not in it
+    front_cone_m: float = math.inf
 
 
 def fit_wall(pts: FloatArray, perp_m: float, tol_m: float) -> tuple[float, float | None]:
@@ -141,11 +146,14 @@ def perceive(
     y = rr * b.sin_a
 
     front_free = float(r[b.ahead])
-    front = front_free
+    front = cone = front_free
     in_path = ok & (x > 0)
     in_path &= np.abs(y) <= c.robot_radius_m + c.path_margin_m
     if np.any(in_path):
         front = min(front, float(np.min(x[in_path])))
+        ahead = in_path & (np.abs(b.a) <= FRONT_CONE_RAD)
+        if np.any(ahead):
+            cone = min(cone, float(np.min(x[ahead])))
 
     def side(k: int) -> tuple[bool, float, float | None]:
         perp_m = float(r[b.perp[k]] * b.perp_sin[k])
@@ -161,4 +169,4 @@ def perceive(
     wall_angle = None  # only two parallel walls are trusted as a hallway's direction
     if l_ang is not None and r_ang is not None and abs(l_ang - r_ang) <= PARALLEL_RAD:
         wall_angle = 0.5 * (l_ang + r_ang)
-    return Perception(front, front_free, l_open, r_open, l_dist, r_dist, wall_angle)
+    return Perception(front, front_free, l_open, r_open, l_dist, r_dist, wall_angle, cone)

@@ -51,6 +51,11 @@ class NavigateConfig:
     stop_distance_m: float = field(
         default=0.6, metadata={"help": "a Go step ends early at this front range [m]"}
     )
+    passage_side_m: float = field(
+        default=0.7,
+        metadata={"help": "both side walls nearer than this: a doorway's passage, where only "
+                          "the echo straight ahead ends a Go step [m]"},
+    )
     search_radius_m: float = field(
         default=0.6,
         metadata={
@@ -152,6 +157,7 @@ class NavigateConfig:
             "start_offset_deg",
             "search_radius_m",
             "search_heading_deg",
+            "passage_side_m",
             "max_turn_deg",
             "min_fit_constraint",
             "axis_search_step_m",

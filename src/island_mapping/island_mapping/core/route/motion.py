@@ -146,7 +146,10 @@ def go_to(d: Drive, target_odom: Pose2D) -> Motion:
 
 def go_along_hall(d: Drive, distance_m: float) -> Motion:
     """Drive distance_m of odometric travel forward, centred in the hallway by the sonar;
-    stop early at a wall ahead (front range) or when the motion is blocked."""
+    stop early at a wall ahead (an echo in the robot's path within 30 deg of the heading: a
+    doorway's jamb heard on an oblique transducer is beside the path; in a doorway's
+    passage, both sides nearer than passage_side_m, only the echo straight ahead, since the
+    jambs' corners echo on every oblique axis) or when the motion is blocked."""
     c = d.cfg
     travelled = 0.0
     last = d.sense.odom
@@ -156,7 +159,8 @@ def go_along_hall(d: Drive, distance_m: float) -> Motion:
     while travelled < distance_m - _GO_DONE_M:
         p = perceive(d.sense.ranges_m, d.sense.angles_rad, d.perception)
         o = d.sense.odom
-        if p.front_m < c.stop_distance_m:
+        in_passage = p.left_dist_m < c.passage_side_m and p.right_dist_m < c.passage_side_m
+        if (p.front_free_m if in_passage else p.front_cone_m) < c.stop_distance_m:
             break
         if p.wall_angle_rad is not None and abs(p.wall_angle_rad) < _WALL_TRUST_RAD:
             hold = wrap_angle(o.theta + p.wall_angle_rad)
