@@ -1,43 +1,34 @@
 """The island builder's configuration: the single source of its defaults.
 
 `BuilderConfig` (eq. 3, the attempt rules, where an accepted island's origin goes) holds a
-`StarConfig` (the four-corner star the robot drives) and a `RevisitConfig` (recognising an
-island the robot already built). Each field's `help` says what it does; docs/builder.md says
-why the defaults are what they are.
+`StarConfig` (the four-corner star the robot drives), an `OpeningConfig` (side openings as
+places, `opening_config`) and a `RevisitConfig` (recognising an island the robot already built,
+`revisit_config`); `BuilderError` is re-exported from `errors`. Each field's `help` says what
+it does; docs/builder.md says why the defaults are what they are.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
-from island_msgs_py.errors import InputError
 from island_msgs_py.types import ModelType
 
+from island_mapping.core.builder.errors import BuilderError
+from island_mapping.core.builder.errors import check_numbers as _check
+
+__all__ = ["BuilderConfig", "BuilderError", "OpeningConfig", "RevisitConfig", "StarConfig"]
+from island_mapping.core.builder.opening_config import OpeningConfig
+from island_mapping.core.builder.revisit_config import RevisitConfig
 from island_mapping.core.fisher import FisherConfig
 from island_mapping.core.lines import LineFitConfig
 from island_mapping.core.localize import LocalizeConfig, Solver
 from island_mapping.core.measure import MeasureConfig
 
 
-class BuilderError(InputError):
-    """Bad input to the island builder (the message names the argument and the problem)."""
-
-
 def _point_to_line() -> LocalizeConfig:
     """Localization with the Gauss-Newton point-to-line step (the Dudek-MacKenzie step reaches
     the same fixed point but often needs more than its iteration limit)."""
     return LocalizeConfig(solver=Solver.POINT_TO_LINE)
-
-
-def _check(owner: str, obj: object, names: tuple[str, ...], strict: bool) -> None:
-    """Each named field must be a finite number > 0 (strict) or >= 0."""
-    for name in names:
-        v = getattr(obj, name)
-        ok = isinstance(v, int | float) and math.isfinite(v) and (v > 0 if strict else v >= 0)
-        if not ok:
-            bound = "> 0" if strict else ">= 0"
-            raise BuilderError(f"{owner}.{name}: expected a finite number {bound}, got {v!r}")
 
 
 @dataclass(frozen=True)
@@ -93,238 +84,6 @@ class StarConfig:
             raise BuilderError(
                 f"StarConfig.min_leg_m ({self.min_leg_m}) exceeds leg_length_m "
                 f"({self.leg_length_m})"
-            )
-
-
-@dataclass(frozen=True)
-class RevisitConfig:
-    """Recognising an island the robot already built (beyond the paper: revisits on a loop).
-
-    Tried whenever the quick check passes (before deferring or starting a star), and on a
-    star's points before it becomes a new island: islands whose origin may lie near the
-    odometric pose are searched for the scan points; a recognition must converge with a small
-    residual, be unambiguous and pass the new-island localization check.
-    """
-
-    enabled: bool = field(
-        default=True, metadata={"help": "try to recognise known islands before a star [bool]"}
-    )
-    search_sigmas: float = field(
-        default=1.0,
-        metadata={
-            "help": "the position (heading) search spans this many sigmas of where the "
-            "candidate's origin may be: the odometric drift since its origin was last known, "
-            "or epsilon plus the error of its link chain from the last island [-]"
-        },
-    )
-    search_min_m: float = field(
-        default=0.5, metadata={"help": "smallest position search radius [m]"}
-    )
-    search_max_m: float = field(
-        default=4.0,
-        metadata={
-            "help": "largest position search radius; candidates that would need a larger "
-            "one are not searched (a match could be a look-alike place) [m]"
-        },
-    )
-    search_step_m: float = field(
-        default=0.3, metadata={"help": "spacing of the initial guesses of the search [m]"}
-    )
-    heading_step_deg: float = field(
-        default=5.0, metadata={"help": "spacing of the heading guesses [deg]"}
-    )
-    search_max_deg: float = field(
-        default=30.0,
-        metadata={
-            "help": "largest heading offset searched; candidates whose heading drift "
-            "(search_sigmas sigmas) exceeds it are not searched [deg]"
-        },
-    )
-    refine_guesses: int = field(
-        default=6,
-        metadata={"help": "best-scoring distinct guesses refined by localization [-]"},
-    )
-    inlier_m: float = field(
-        default=0.15,
-        metadata={"help": "a point within this of the model counts for a guess's score [m]"},
-    )
-    max_range_m: float = field(
-        default=4.0, metadata={"help": "only echoes up to this range are matched [m]"}
-    )
-    history_m: float = field(
-        default=3.0, metadata={"help": "scan points of this last path length are matched [m]"}
-    )
-    min_points: int = field(
-        default=40, metadata={"help": "fewest recent scan points to try a recognition [-]"}
-    )
-    max_points: int = field(
-        default=200, metadata={"help": "the recent points are thinned evenly to this many [-]"}
-    )
-    max_residual_m: float = field(
-        default=0.15, metadata={"help": "largest RMS residual of a recognition [m]"}
-    )
-    min_constraint: float = field(
-        default=0.1,
-        metadata={
-            "help": "a recognition's fit must constrain the position along every axis this "
-            "much (smaller eigenvalue of the normalized normal matrix; hallway points fit a "
-            "hallway anywhere along it) [0-0.5]"
-        },
-    )
-    min_inlier_fraction: float = field(
-        default=0.6,
-        metadata={"help": "fewest points within inlier_m of the model at the recognised pose [-]"},
-    )
-    ambiguity_m: float = field(
-        default=0.5,
-        metadata={
-            "help": "refuse when two refined hypotheses that both fit lie farther apart than "
-            "this (the model fits at distinct places) [m]"
-        },
-    )
-    rival_sigmas: float = field(
-        default=3.0,
-        metadata={
-            "help": "before a recognition is accepted, every other known island that may be "
-            "where the robot is (its odometric estimate within this many sigmas plus "
-            "max_dock_m) is searched too, over this many sigmas (within rival_max_m and "
-            "star_search_max_deg); if one also fits, the place is a look-alike and the "
-            "recognition is refused (0 = no such check) [-]"
-        },
-    )
-    rival_max_m: float = field(
-        default=12.0,
-        metadata={
-            "help": "largest position search radius of that check; its guess grid is "
-            "radius / star_search_cells, at most rival_step_m [m]"
-        },
-    )
-    rival_step_m: float = field(
-        default=0.6, metadata={"help": "largest spacing of the rival search's guesses [m]"}
-    )
-    max_dock_m: float = field(
-        default=3.0,
-        metadata={"help": "the recognised island's origin must be this close to the robot [m]"},
-    )
-    path_clearance_m: float = field(
-        default=0.45,
-        metadata={
-            "help": "the straight drive to the origin must keep this far from the model's "
-            "walls (robot centre) [m]"
-        },
-    )
-    min_loop_m: float = field(
-        default=10.0,
-        metadata={
-            "help": "the last island is a candidate only after this much path since leaving "
-            "it (a loop back to it; just after it, driving back is no use) [m]"
-        },
-    )
-    at_star: bool = field(
-        default=True,
-        metadata={
-            "help": "before a star that passed eq. 3 becomes a new island, match its points "
-            "(a full circle at the anchor and four legs) against the known islands nearby; "
-            "a match is a revisit [bool]"
-        },
-    )
-    star_search_sigmas: float = field(
-        default=2.5,
-        metadata={"help": "search_sigmas for the star's points [-]"},
-    )
-    star_search_max_m: float = field(
-        default=6.0,
-        metadata={
-            "help": "largest position search radius of the star's points; a candidate that "
-            "would need more is not searched (search_max_m for the star) [m]"
-        },
-    )
-    star_search_max_deg: float = field(
-        default=45.0, metadata={"help": "and largest heading search (search_max_deg) [deg]"}
-    )
-    star_search_cells: int = field(
-        default=10,
-        metadata={
-            "help": "the star's guess grid has at least radius / this spacing, so a wide "
-            "search stays a few thousand guesses (localization refines them) [-]"
-        },
-    )
-    star_max_residual_m: float = field(
-        default=0.2,
-        metadata={
-            "help": "largest RMS residual of a recognition from a star's points (echoes from "
-            "five places scatter more than a follower's recent points) [m]"
-        },
-    )
-    star_max_points: int = field(
-        default=300, metadata={"help": "the star's points are thinned evenly to this many [-]"}
-    )
-    strategy_min_go_m: float = field(
-        default=0.3,
-        metadata={
-            "help": "an edge's drive onto a recognised origin nearer than this is only the final "
-            "turn (the arrival's localization takes up the rest) [m]"
-        },
-    )
-    dock_tol_m: float = field(
-        default=0.05, metadata={"help": "docking at the origin ends within this distance [m]"}
-    )
-    dock_tol_deg: float = field(
-        default=3.0, metadata={"help": "and this heading [deg]"}
-    )
-    dock_looks: int = field(
-        default=2,
-        metadata={
-            "help": "look-around localizations at the origin (turn a full circle, localize, "
-            "re-dock if off) [-]"
-        },
-    )
-    unique_island: bool = field(
-        default=False,
-        metadata={"help": "refuse a recognition when the points fit more than one known island "
-                          "(each within its own window) [bool]"},
-    )
-    ambiguity_inlier_margin: float = field(
-        default=1.0,
-        metadata={"help": "a second fit (elsewhere in one island, or of another island with "
-                          "unique_island) makes a recognition ambiguous only when its inlier "
-                          "fraction is within this of the best fit's (1: any fit does) [-]"},
-    )
-    clip_search: bool = field(
-        default=False,
-        metadata={"help": "a candidate whose window would exceed the search caps is searched "
-                          "within the caps instead of refused (needs unique_island and a "
-                          "revisit gate with topological evidence) [bool]"},
-    )
-    fit_sigma_m: float = field(
-        default=0.3, metadata={"help": "a recognised pose's own position error, added to the "
-                               "odometric estimate's covariance in its Mahalanobis distance [m]"})
-    fit_sigma_deg: float = field(
-        default=3.0, metadata={"help": "and its heading error [deg]"})
-
-    def __post_init__(self) -> None:
-        _check("RevisitConfig", self, (
-            "search_sigmas", "search_min_m", "search_max_m", "search_step_m",
-            "heading_step_deg", "inlier_m", "history_m", "max_range_m", "max_residual_m",
-            "ambiguity_m", "max_dock_m", "dock_tol_m", "dock_tol_deg", "strategy_min_go_m",
-            "star_search_sigmas", "star_max_residual_m", "star_search_max_m",
-            "star_search_max_deg", "rival_max_m", "rival_step_m", "fit_sigma_m", "fit_sigma_deg",
-        ), strict=True)
-        _check("RevisitConfig", self, (
-            "search_max_deg", "path_clearance_m", "min_inlier_fraction", "min_loop_m",
-            "min_constraint", "rival_sigmas", "ambiguity_inlier_margin",
-        ), strict=False)
-        for name in ("refine_guesses", "min_points", "max_points", "star_search_cells",
-                     "star_max_points"):
-            iv = getattr(self, name)
-            if iv < 1:
-                raise BuilderError(f"RevisitConfig.{name}: expected >= 1, got {iv}")
-        if self.dock_looks < 0:
-            raise BuilderError(f"RevisitConfig.dock_looks: expected >= 0, got {self.dock_looks}")
-        if self.search_min_m > self.search_max_m:
-            raise BuilderError(
-                f"RevisitConfig.search_min_m ({self.search_min_m}) exceeds search_max_m "
-                f"({self.search_max_m})"
             )
 
 
@@ -532,6 +291,25 @@ class BuilderConfig:
             "help": "scans taken within this distance of the origin count as seen from it [m]"
         },
     )
+    accept_on_legs: bool = field(
+        default=False,
+        metadata={
+            "help": "eq. 3 checks the region the star surveyed: the best normalized measure "
+            "at the anchor or along the driven legs (not in a plain hallway) must pass the "
+            "bound, and the origin goes there; off: at the anchor only [bool]"
+        },
+    )
+    origin_seen_radius_m: float = field(
+        default=0.15,
+        metadata={"help": "with accept_on_legs, scans taken this near the chosen origin are "
+                          "what the new-island check localizes [m]"},
+    )
+    drive_stall_s: float = field(
+        default=8.0,
+        metadata={"help": "a drive (a star leg, back to an opening's middle, onto an origin, "
+                          "docking) that moves the robot less than 2 cm / 2 deg for this long "
+                          "ends where the robot is (it pushes at a wall); 0 = never [s]"},
+    )
     build_first_island: bool = field(
         default=True,
         metadata={"help": "build island 0 at the start pose before following (paper 8.2) [bool]"},
@@ -545,6 +323,10 @@ class BuilderConfig:
     )
     star: StarConfig = field(
         default_factory=StarConfig, metadata={"help": "the four-corner star routine"}
+    )
+    opening: OpeningConfig = field(
+        default_factory=OpeningConfig,
+        metadata={"help": "side openings as places to attempt islands at (core.builder.opening)"},
     )
     revisit: RevisitConfig = field(
         default_factory=RevisitConfig, metadata={"help": "recognising islands already built"}
@@ -572,7 +354,7 @@ class BuilderConfig:
             "bound_floor", "quick_reject_fraction", "retry_distance_m", "vicinity_m",
             "settled_go_m", "dismiss_fraction", "first_island_min_measure", "peak_min_gain",
             "peak_ahead_min_gain", "peak_ahead_m", "origin_feature_radius_m", "probe_turn_deg",
-            "probe_agree_deg",
+            "probe_agree_deg", "origin_seen_radius_m", "drive_stall_s",
         ), strict=False)
         if isinstance(self.probe_climbs, bool) or not isinstance(self.probe_climbs, int) or (
             self.probe_climbs < 0

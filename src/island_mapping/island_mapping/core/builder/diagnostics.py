@@ -1,5 +1,6 @@
 """What the builder counts for diagnostics: events by kind, why recognitions were refused,
-and how probes of origins past a star's legs ended. Nothing here feeds a decision."""
+how probes of origins past a star's legs ended, and drives that stalled. Nothing here feeds a
+decision."""
 
 from __future__ import annotations
 
@@ -46,6 +47,7 @@ class Diagnostics:
     probes: dict[str, int] = field(
         default_factory=lambda: {o.value: 0 for o in ProbeOutcome}
     )
+    drive_stalls: int = 0  # drives onto a point that ended where the robot pushed at a wall
 
     def refuse(self, reason: Refusal) -> None:
         """Count one refusal."""

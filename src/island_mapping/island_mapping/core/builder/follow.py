@@ -133,6 +133,7 @@ class Following:
     path_m: float
     strategy: ControlStrategy
     near_last_island: bool
+    at_opening: bool = False
 
 
 def follow_step(
@@ -159,6 +160,9 @@ def follow_step(
         now.strategy, cfg.settled_go_m
     ) or now.near_last_island:
         return FollowStep.FOLLOW, 0.0
+    if now.at_opening:  # the place's good point is in the opening, not at the robot
+        gate.end_deferral()
+        return (FollowStep.FOLLOW if try_revisit() else FollowStep.ATTEMPT), 0.0
     q = quick()
     if q < cfg.quick_reject_fraction * eq3_bound(cfg, now.epsilon_m):
         gate.end_deferral()

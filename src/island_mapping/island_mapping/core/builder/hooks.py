@@ -48,12 +48,15 @@ from island_mapping.core.builder.config import BuilderConfig, RevisitConfig
 from island_mapping.core.builder.diagnostics import Refusal
 from island_mapping.core.builder.events import BuilderEvent, EventKind
 from island_mapping.core.builder.geometry import concat
+from island_mapping.core.builder.opening import OpeningExit
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition
 from island_mapping.core.builder.star import Attempt
 
-ExitFinder = Callable[[FloatArray, FloatArray, FloatArray, float | None], tuple[Exit, ...]]
-"""(segments (N, 4), echo points (M, 2), driven paths (K, 4), arrival heading [rad] or None),
-all in the island frame [m] -> the island's exits (all unexplored)."""
+ExitFinder = Callable[[FloatArray, FloatArray, FloatArray, float | None, OpeningExit | None],
+                      tuple[Exit, ...]]
+"""(segments (N, 4), echo points (M, 2), driven paths (K, 4), arrival heading [rad] or None,
+the opening the island stands in or None), all in the island frame [m] -> the island's exits
+(all unexplored)."""
 
 RevisitGate = Callable[[Recognition, PoseSnapshot, Island, bool], Refusal | None]
 """(the proposed recognition, the robot's snapshot, the recognised island, from a star?) ->

@@ -20,7 +20,6 @@ import numpy.typing as npt
 from island_msgs_py.geometry import ranges_to_points
 from island_msgs_py.types import (
     ControlStrategy,
-    Edge,
     FloatArray,
     Island,
     LineModel,
@@ -71,9 +70,11 @@ from island_mapping.core.builder.hooks import (
 )
 from island_mapping.core.builder.inputs import checked_cov, checked_scan
 from island_mapping.core.builder.ledger import Ledger
-from island_mapping.core.builder.motion import STOP, LookPhase, Twist
+from island_mapping.core.builder.motion import STOP, LookPhase, StallWatch, Twist
+from island_mapping.core.builder.opening import Openings
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
 from island_mapping.core.builder.star import Attempt
+from island_mapping.core.builder.view import BuilderView
 
 
 class _State(StrEnum):
@@ -83,11 +84,13 @@ class _State(StrEnum):
     RETURNING = "returning"  # back to the origin, facing theta 0, then hand back
     DOCKING = "docking"  # onto a recognised island's origin, then hand back
     PROBING = "probing"  # to an origin past the star's legs: look around there, verify it
+    ENTERING = "entering"  # into a side opening the robot passed, to attempt inside it
+    LEAVING = "leaving"  # back out of it to where the follower stopped (attempt dismissed)
     IDLE = "idle"  # managed mode: at an island, the explorer drives (core.builder.hooks)
 
 
-# size-ok: one method per state and transition (488 lines); the decisions are already functions
-class IslandBuilder:
+# size-ok: one method per state and transition; the decisions are already functions
+class IslandBuilder(BuilderView):
     """The island builder state machine (see the module docstring).
 
     Call `on_odometry` for every odometry message, `on_scan` for every scan, `set_strategy`
@@ -114,6 +117,9 @@ class IslandBuilder:
         self._path_m = 0.0  # odometric path length while following [m]
         self._history = ScanHistory()
         self._gate = FollowGate()
+        self._openings = Openings(self.config.opening)
+        self._stall = StallWatch(self.config.drive_stall_s)
+        self._gave_up = False  # the drive under way stalled: it ends where the robot is
         self._strategy = ControlStrategy(())
         self._attempt: Attempt | None = None
         self._dock: Dock | None = None
@@ -141,6 +147,7 @@ class IslandBuilder:
         dep = self._departure
         self._strategy = strategy if dep is None else ControlStrategy(
             dep.prefix.steps + strategy.steps)
+        self._strategy = ControlStrategy(self._strategy.steps + self._openings.steps())
 
     def on_scan(self, t_s: float, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike) -> None:
         """A sonar scan: ranges from the robot centre [m] (inf = no echo) at robot-frame angles."""
@@ -161,6 +168,8 @@ class IslandBuilder:
             return
         if self._state is _State.IDLE:
             return
+        if self._state is _State.FOLLOWING and self.config.opening.enabled:
+            self._openings.observe(r, a, self._path_m, self._odom.theta)
         self._history.add(self._path_m, pts, near_pts, self._state is _State.FOLLOWING,
                           self.config)
 
@@ -185,6 +194,7 @@ class IslandBuilder:
             raise BuilderError(f"handover: island {island_id} has no exit {exit_index} (its "
                                f"exits: {[e.index for e in island.exits]})")
         self._departure = Departure(island.id, exit_index, prefix)
+        self._openings.reset()  # openings count from a hallway driven after the handover
         self._strategy = prefix
         self._path_m += sum(s.metres for s in prefix.steps if s.kind is PrimitiveKind.GO)
         self._gate.retry_at_path_m = self._path_m
@@ -215,7 +225,7 @@ class IslandBuilder:
                                f"{len(self.ledger.islands)})")
         return found[0]
 
-    # ----- queries -----
+    # ----- queries (more in core.builder.view) -----
 
     @property
     def _odom(self) -> Pose2D | None:
@@ -224,50 +234,6 @@ class IslandBuilder:
     @property
     def state(self) -> str:
         return self._state.value
-
-    @property
-    def epsilon_m(self) -> float:
-        """The current epsilon [m] (see `RelativeCovariance`)."""
-        return self._track.rel.epsilon_m
-
-    @property
-    def last_island(self) -> Island | None:
-        return self.ledger.last_island
-
-    @property
-    def islands(self) -> list[Island]:
-        """The islands built, in id order (the builder's own list)."""
-        return self.ledger.islands
-
-    @property
-    def edges(self) -> list[Edge]:
-        """The edges added (a cheaper revisit edge replaces its predecessor)."""
-        return self.ledger.edges
-
-    @property
-    def island_origins_odom(self) -> dict[int, Pose2D]:
-        """Each island's origin in the odometry frame when it was built."""
-        return self.ledger.island_origins_odom
-
-    @property
-    def path_m(self) -> float:
-        """Odometric path length followed (the hall follower driving) [m]."""
-        return self._path_m
-
-    @property
-    def counts(self) -> dict[EventKind, int]:
-        """Events emitted, by kind."""
-        return self.diagnostics.counts
-
-    @property
-    def revisit_refusals(self) -> dict[str, int]:
-        """Why revisit hypotheses were refused: reason -> count."""
-        return self.diagnostics.revisit_refusals
-
-    @property
-    def probes(self) -> dict[str, int]:
-        """Origins past the star's legs: checked on the spot and kept, or fallen back from."""
-        return self.diagnostics.probes
 
     def snapshot(self) -> PoseSnapshot:
         """The robot's pose, covariance and error since the last island, for recognition."""
@@ -302,6 +268,15 @@ class IslandBuilder:
                 self._state = _State.FOLLOWING
         if self._state is _State.FOLLOWING:
             self._maybe_attempt()
+        if self._odom is not None and self._stall.update(self._t, self._odom, self._state in (
+            _State.ENTERING, _State.LEAVING, _State.RETURNING, _State.DOCKING, _State.STAR
+        )):  # pushing at a wall: the drive ends where the robot is
+            self.diagnostics.drive_stalls += 1
+            self._gave_up = True
+        if self._state is _State.ENTERING:
+            v, w = self._entry_step()
+        if self._state is _State.LEAVING:
+            v, w = self._leave_step()
         if self._state is _State.STAR:
             v, w = self._star_step()
         if self._state is _State.PROBING:
@@ -327,7 +302,8 @@ class IslandBuilder:
         assert self._odom is not None
         odom, cfg = self._odom, self.config
         now = Following(self.epsilon_m, self._t, self._path_m, self._strategy,
-                        self.ledger.near_last_island(odom, cfg.vicinity_m))
+                        self.ledger.near_last_island(odom, cfg.vicinity_m),
+                        self._openings.pending(self._path_m))
         step, quick = follow_step(
             self._gate, cfg, now,
             lambda: self.measures.of_points(concat(self._history.quick_points()),
@@ -337,7 +313,10 @@ class IslandBuilder:
             self._emit(EventKind.ATTEMPT_FAILED_AT_ONCE, anchor_odom=odom, measure=quick,
                        bound=eq3_bound(cfg, now.epsilon_m))
         elif step is FollowStep.ATTEMPT:
-            self._start_attempt(first=False)
+            if self._openings.enter(odom, self._path_m):  # back to its middle, then in
+                self._state = _State.ENTERING
+            else:
+                self._start_attempt(first=False)
 
     def _start_attempt(self, first: bool) -> None:
         assert self._odom is not None and self._last_scan is not None
@@ -350,6 +329,35 @@ class IslandBuilder:
         self._track.anchor_star()
         self._state = _State.STAR
         self._emit(EventKind.ATTEMPT_STARTED, anchor_odom=self._odom, bound=bound)
+
+    def _take_give_up(self) -> bool:
+        """Did the drive under way stall (then it ends here)? Cleared once asked."""
+        gave_up, self._gave_up = self._gave_up, False
+        return gave_up
+
+    def _entry_step(self) -> Twist:
+        """Into the opening passed (back to its middle, a quarter turn, in); the attempt starts
+        there, the edge's strategy going on with the steps driven."""
+        assert self._odom is not None and self._last_scan is not None
+        cmd = self._openings.step(self._odom, self._last_scan, self.config.star,
+                                  self._take_give_up())
+        if cmd is not None:
+            return cmd
+        self._strategy = ControlStrategy(self._strategy.steps + self._openings.steps())
+        self._start_attempt(first=False)
+        assert self._attempt is not None
+        self._attempt.keep_anchor = True
+        return STOP
+
+    def _leave_step(self) -> Twist:
+        """Back out of the opening to where the follower stopped; it follows on from there."""
+        entry = self._openings.entry
+        assert entry is not None and self._odom is not None
+        cmd = entry.leave_step(self._odom, self.config.star, self._take_give_up())
+        if cmd is not None:
+            return cmd
+        self._hand_back(entry.record_end, None)
+        return STOP
 
     def _pose_in_anchor(self) -> Pose2D:
         assert self._odom is not None and self._attempt is not None
@@ -367,7 +375,8 @@ class IslandBuilder:
         att = self._attempt
         assert att is not None and self._odom is not None
         var = None if self._track.star is None else float(self._track.star.p[2, 2])
-        twist, verdict = star.star_step(self.measures, att, self._odom, self._ahead_free_m(), var)
+        twist, verdict = star.star_step(self.measures, att, self._odom, self._ahead_free_m(), var,
+                                        self._take_give_up())
         if verdict is star.Verdict.ACCEPT:
             self._accept()
         elif verdict is not star.Verdict.NONE:
@@ -393,12 +402,12 @@ class IslandBuilder:
                 return
         pts = concat(att.points)
         model = self.measures.fit(pts) if pts.shape[0] >= 2 else LineModel()
+        origin = star.choose_origin(self.measures, model, att, self._pose_in_anchor())
         if cfg.verify_localization and not att.first and not localizes_back(
-            cfg, model, concat(att.centre_points), Pose2D(0.0, 0.0, 0.0)
+            cfg, model, star.seen_at_origin(att, origin, cfg), Pose2D(0.0, 0.0, 0.0)
         ):
             self._dismiss(partial=False, reason=DismissReason.LOCALIZATION_CHECK)
             return
-        origin = star.choose_origin(self.measures, model, att, self._pose_in_anchor())
         if isinstance(origin, star.Probe):  # past the driven legs: check it on the spot
             att.probe = origin
             self._state = _State.PROBING
@@ -420,7 +429,7 @@ class IslandBuilder:
             id=len(book.islands), model=model, model_type=att.best_type, r=float(att.best),
             built_at_s=self._t,
             origin_truth=None if att.anchor_truth is None else att.anchor_truth.compose(shift),
-            exits=() if find is None else find(*evidence),
+            exits=() if find is None else find(*evidence, self._openings.exit_info(shift)),
         )
         arrival = None if evidence[3] is None else facing_exit(
             island, evidence[3], self.hooks.arrival_match_deg)
@@ -478,24 +487,30 @@ class IslandBuilder:
         att = self._attempt
         assert att is not None
         cmd = motion.return_to_centre(self._pose_in_anchor(), self.config.star)
-        if cmd is not None:
+        if cmd is not None and not self._take_give_up():
             return cmd
         accepted = att.outcome is EventKind.ISLAND_ACCEPTED
-        self._hand_back(att.anchor, self.ledger.last_island if accepted else None)
         self._attempt = None
         self._track.star = None
+        if not accepted and self._openings.entry is not None:  # back out where the follower was
+            self._openings.entry.leave()
+            self._state = _State.LEAVING
+            return STOP
+        self._hand_back(att.anchor, self.ledger.last_island if accepted else None)
         return STOP
 
     def _hand_back(self, origin: Pose2D, island: Island | None) -> None:
         """Back to the follower at `origin` (odometry); at `island`'s origin its record
         restarts there."""
         self.ledger.handed_back(island, self._path_m)
+        self._openings.entry = None
         if island is not None:
             self._strategy = ControlStrategy(())
             self._departure = None
         self._emit(EventKind.HANDED_BACK, anchor_odom=origin,
                    accepted_island_id=None if island is None else island.id)
         self._history.quick.clear()
+        self._openings.reset()
         managed_stop = self.hooks.managed and island is not None
         self._state = _State.IDLE if managed_stop else _State.FOLLOWING
 
@@ -561,7 +576,7 @@ class IslandBuilder:
         dock = self._dock
         assert dock is not None and self._odom is not None
         cmd = dock_step(dock, self._odom, self._ahead_free_m(), self.config)
-        if cmd is not None:
+        if cmd is not None and not self._take_give_up():
             return cmd
         self._track.rel.reset()
         self.recognizer.remember(dock.island.id, dock.target, self._track.cov.copy())

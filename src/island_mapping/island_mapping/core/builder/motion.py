@@ -65,6 +65,32 @@ class Look:
     points: list[FloatArray] = field(default_factory=list, kw_only=True)  # odometry frame [m]
 
 
+class StallWatch:
+    """Has a drive made no progress (odometry within stall_m and stall_rad) for after_s? Feed
+    `update` once per scan; it answers True once per stall (and starts over)."""
+
+    def __init__(self, after_s: float, stall_m: float = 0.02,
+                 stall_rad: float = math.radians(2.0)) -> None:
+        self.after_s, self.stall_m, self.stall_rad = after_s, stall_m, stall_rad
+        self._since: tuple[float, Pose2D] | None = None
+
+    def update(self, t_s: float, odom: Pose2D, driving: bool) -> bool:
+        """The robot at odom at t_s [s]; driving: a drive that should progress is under way."""
+        if not driving or self.after_s <= 0:
+            self._since = None
+            return False
+        s = self._since
+        if s is None or math.hypot(odom.x - s[1].x, odom.y - s[1].y) > self.stall_m or abs(
+            wrap_angle(odom.theta - s[1].theta)
+        ) > self.stall_rad:
+            self._since = (t_s, odom)
+            return False
+        if t_s - s[0] >= self.after_s:
+            self._since = None
+            return True
+        return False
+
+
 def turn_rate(err_rad: float, sc: StarConfig) -> float:
     """The turn rate [rad/s] that closes a heading error [rad] (proportional, clipped)."""
     return float(

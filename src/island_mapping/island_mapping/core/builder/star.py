@@ -27,6 +27,7 @@ from island_mapping.core.builder.checks import (
     localizes_back,
     register_look,
 )
+from island_mapping.core.builder.config import BuilderConfig
 from island_mapping.core.builder.epsilon import Measures
 from island_mapping.core.builder.events import EventKind
 from island_mapping.core.builder.geometry import concat, drive_clear, from_frame, to_frame
@@ -76,12 +77,14 @@ class Attempt:
     centre_points: list[FloatArray] = field(default_factory=list)  # seen from the origin [m]
     # Echoes within revisit.max_range_m, in the origin frame, for recognising a known island [m]
     near_points: list[FloatArray] = field(default_factory=list)
+    # Where each scan of `points` was taken, in the anchor frame: (1, 2) each [m].
+    scan_at: list[FloatArray] = field(default_factory=list)
     leg: int = 0
     phase: LegPhase = LegPhase.TURN
     leg_length_m: float = 0.0
     legs_done: list[tuple[float, float]] = field(default_factory=list)
-    # Where the current leg's scans begin in points, centre_points and near_points.
-    leg_marks: tuple[int, ...] = (0, 0, 0)
+    # Where the current leg's scans begin in points, centre_points, near_points and scan_at.
+    leg_marks: tuple[int, ...] = (0, 0, 0, 0)
     # Heading variance of the pose in the anchor frame after the last leg registration, and
     # odometry's relative heading variance then [rad^2].
     heading_var_rad2: float = 0.0
@@ -89,6 +92,7 @@ class Attempt:
     ahead_free_m: float = 0.0  # nearest echo ahead of the anchor when the attempt started [m]
     behind_free_m: float = 0.0  # straight path the follower drove up to the anchor [m]
     probe: Probe | None = None
+    keep_anchor: bool = False  # the origin stays at the anchor when its measure passes
     best: float = 0.0
     best_type: ModelType = ModelType.LINE
     model: LineModel | None = None
@@ -105,6 +109,7 @@ class Attempt:
         att.ahead_free_m, att.behind_free_m = ahead_free_m, behind_free_m
         att.points.append(first_points)
         att.centre_points.append(first_points)
+        att.scan_at.append(np.zeros((1, 2)))
         return att
 
     def add_scan(self, points_odom: FloatArray, near_odom: FloatArray, odom: Pose2D,
@@ -114,14 +119,21 @@ class Attempt:
         local = to_frame(points_odom, self.anchor)
         self.points.append(local)
         rel = odom.relative_to(self.anchor)
+        self.scan_at.append(np.array([[rel.x, rel.y]]))
         if math.hypot(rel.x, rel.y) <= centre_radius_m:
             self.centre_points.append(local)
         self.near_points.append(to_frame(near_odom, self.anchor))
 
-    def point_lists(self) -> tuple[list[FloatArray], list[FloatArray], list[FloatArray]]:
-        """points, centre_points, near_points: the scans kept in the anchor frame (the order
-        of leg_marks)."""
-        return self.points, self.centre_points, self.near_points
+    def point_lists(self) -> tuple[list[FloatArray], ...]:
+        """points, centre_points, near_points, scan_at: the scans kept in the anchor frame
+        and where they were taken (the order of leg_marks)."""
+        return self.points, self.centre_points, self.near_points, self.scan_at
+
+    def seen_from(self, at: Pose2D, radius_m: float) -> FloatArray:
+        """The points of the scans taken within radius_m of `at` (anchor frame) [m]."""
+        near = [p for p, w in zip(self.points, self.scan_at, strict=True)
+                if math.hypot(float(w[0, 0]) - at.x, float(w[0, 1]) - at.y) <= radius_m]
+        return concat(near) if near else np.zeros((0, 2))
 
     def survey(self, robot: Pose2D) -> Survey:
         """What the star surveyed so far, the robot at `robot` in the anchor frame."""
@@ -156,7 +168,7 @@ class Verdict(StrEnum):
 
 def star_step(
     m: Measures, att: Attempt, odom: Pose2D, ahead_free_m: float,
-    odom_heading_var_rad2: float | None,
+    odom_heading_var_rad2: float | None, stalled: bool = False,
 ) -> tuple[Twist, Verdict]:
     """One step of the four legs (ahead, left, behind, right): turn to the leg's bearing,
     drive out (shortened to the free range ahead minus the clearance; skipped if too short),
@@ -168,8 +180,11 @@ def star_step(
         bearing = LEG_BEARINGS_RAD[att.leg]
         if att.phase is LegPhase.TURN:
             cmd = turn_to(odom.relative_to(att.anchor), bearing, sc)
-            if cmd is not None:
+            if cmd is not None and not stalled:
                 return cmd, Verdict.NONE
+            if cmd is not None:  # cannot turn here (touching a wall): skip this corner
+                att.leg += 1
+                return STOP, Verdict.NONE
             att.leg_length_m = min(sc.leg_length_m, ahead_free_m - sc.clearance_m)
             if att.leg_length_m < sc.min_leg_m:
                 att.leg += 1  # this corner is not reachable: skip it
@@ -178,7 +193,7 @@ def star_step(
         along, lateral = along_line(odom.relative_to(att.anchor), bearing)
         if att.phase is LegPhase.OUT:
             remaining = att.leg_length_m - along
-            if remaining > sc.position_tol_m and ahead_free_m >= sc.clearance_m:
+            if remaining > sc.position_tol_m and ahead_free_m >= sc.clearance_m and not stalled:
                 return drive_line(odom.relative_to(att.anchor), bearing, lateral,
                                   min(sc.speed_mps, remaining * 2.0), sc), Verdict.NONE
             att.legs_done.append((bearing, max(along, 0.0)))
@@ -188,7 +203,7 @@ def star_step(
             verdict = evaluate_legs(m, att)
             if verdict is not Verdict.NONE:
                 return STOP, verdict
-        if along > sc.position_tol_m:  # BACK: reverse to the centre
+        if along > sc.position_tol_m and not stalled:  # BACK: reverse to the centre
             return drive_line(odom.relative_to(att.anchor), bearing, lateral,
                               -min(sc.speed_mps, along * 2.0), sc), Verdict.NONE
         att.leg += 1
@@ -205,6 +220,8 @@ def evaluate_legs(m: Measures, att: Attempt) -> Verdict:
     bound; island 0 always drives the full star."""
     cfg = m.cfg
     t, best, model = m.of_points(concat(att.points), np.zeros(2))
+    if cfg.accept_on_legs and len(model) > 0:
+        best = max(best, legs_best(m, model, att))
     if best >= att.best:
         att.best, att.best_type, att.model = best, t, model
     if att.first:
@@ -216,6 +233,18 @@ def evaluate_legs(m: Measures, att: Attempt) -> Verdict:
     ):
         return Verdict.DISMISS_PARTIAL
     return Verdict.NONE
+
+
+def legs_best(m: Measures, model: LineModel, att: Attempt) -> float:
+    """The best normalized measure of `model` at the points along the driven legs (every
+    peak_step_m) where it does not show a plain hallway: the region the star surveyed."""
+    best = 0.0
+    for bearing, length in att.legs_done:
+        u = np.array([math.cos(bearing), math.sin(bearing)])
+        for _, p, r in along(m, model, np.zeros(2), u, length, length, _ANCHOR):
+            if r > best and not plain_hallway(m, model, p):
+                best = r
+    return best
 
 
 def register_leg(m: Measures, att: Attempt, odom_heading_var_rad2: float) -> None:
@@ -349,6 +378,16 @@ def peak_origin(m: Measures, model: LineModel, survey: Survey) -> tuple[Candidat
     return legs, (far if far[1] > floor and far[1] > legs[1] else legs)
 
 
+def seen_at_origin(att: Attempt, origin: Candidate | Probe, cfg: BuilderConfig) -> FloatArray:
+    """The points the new-island check localizes: those seen from the anchor, or with
+    accept_on_legs from the chosen origin along the legs (a probe's own look checks a probed
+    origin; before it, its fallback)."""
+    if not cfg.accept_on_legs:
+        return concat(att.centre_points)
+    at = origin.fallback if isinstance(origin, Probe) else origin[0]
+    return att.seen_from(at, cfg.origin_seen_radius_m)
+
+
 def choose_origin(m: Measures, model: LineModel, att: Attempt,
                   robot: Pose2D) -> Candidate | Probe:
     """The accepted island's origin (anchor frame) and its measure, or a probe of an origin
@@ -356,6 +395,10 @@ def choose_origin(m: Measures, model: LineModel, att: Attempt,
     origin_at_peak, for island 0, or without a model. robot: the robot in the anchor frame."""
     if not m.cfg.origin_at_peak or att.first or len(model) == 0:
         return _ANCHOR, att.best
+    if att.keep_anchor:  # an opening's island: where the robot was taken to, if good enough
+        r_anchor = m.at(model, np.zeros(2))
+        if r_anchor > att.bound and not plain_hallway(m, model, _ANCHOR):
+            return _ANCHOR, r_anchor
     (shift, r_peak), (far, r_far) = peak_origin(m, model, att.survey(robot))
     if far != shift:
         return Probe(model, far, r_far, shift, r_peak)
