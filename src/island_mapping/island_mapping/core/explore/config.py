@@ -81,10 +81,32 @@ class ExitConfig:
     min_width_m: float = field(
         default=0.6, metadata={"help": "narrowest opening reported as an exit [m]"}
     )
+    open_width_m: float = field(
+        default=3.0,
+        metadata={"help": "where the model's free width across the origin is at least this "
+                          "along both island axes the island stands in open space (a room, a "
+                          "hall): its exits are the gaps in the walls (gates) [m]"},
+    )
+    gap_line_m: float = field(
+        default=0.3,
+        metadata={"help": "two wall segments within this of one line make a wall with a gap "
+                          "(a doorway) [m]"},
+    )
+    gap_line_deg: float = field(
+        default=15.0,
+        metadata={"help": "... and within this of one direction [deg]"},
+    )
+    opening_ahead_deg: float = field(
+        default=100.0,
+        metadata={"help": "an island inside a side opening keeps the exits within this of its "
+                          "theta 0 (into the opening); the hallway it stands off is its arrival "
+                          "and a side exit [deg]"},
+    )
 
     def __post_init__(self) -> None:
         _check_numbers(self, ("heading_step_deg", "clearance_m", "reach_m", "evidence_range_m",
-                              "merge_deg", "min_width_m", "entry_m"),
+                              "merge_deg", "min_width_m", "entry_m", "opening_ahead_deg",
+                              "open_width_m", "gap_line_m", "gap_line_deg"),
                        ("driven_clearance_m", "arrival_match_deg", "lane_offset_m"))
         if isinstance(self.min_points, bool) or not isinstance(self.min_points, int) or (
             self.min_points < 1
@@ -100,7 +122,7 @@ class NoveltyConfig:
     enabled: bool = field(
         default=False,
         metadata={"help": "rank exits whose look point the map already knows after the others "
-                          "(false: nearest first only)"},
+                          "(false: nearest first only) [bool]"},
     )
     lookahead_m: float = field(
         default=4.0,
@@ -244,6 +266,11 @@ class ExplorerConfig:
         metadata={"help": "islands up to this route length away are compared for duplicates "
                           "(their frames dead-reckoned along the edges' strategies) [m]"},
     )
+    side_direct_m: float = field(
+        default=3.0,
+        metadata={"help": "a side exit whose prefix drives no farther than this is reached by "
+                          "its prefix alone, without seeking the opening [m]"},
+    )
     side_search_m: float = field(
         default=1.5,
         metadata={"help": "driving to a side exit, the robot looks for the opening from this "
@@ -273,7 +300,7 @@ class ExplorerConfig:
                        ("depart_min_free_m", "lane_snap_m"))
         _check_numbers(self, ("side_min_width_m", "side_near_island_m", "side_merge_m",
                               "side_merge_deg", "side_chain_m", "side_search_m"),
-                       ("side_max_turn_deg",))
+                       ("side_max_turn_deg", "side_direct_m"))
         if isinstance(self.retries_per_exit, bool) or not isinstance(self.retries_per_exit, int) \
                 or self.retries_per_exit < 0:
             raise ExploreError("ExplorerConfig.retries_per_exit: expected an int >= 0, got "

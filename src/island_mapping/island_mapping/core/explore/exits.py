@@ -23,9 +23,19 @@ from dataclasses import dataclass
 
 import numpy as np
 from island_msgs_py.geometry import point_segment_distance
-from island_msgs_py.types import Exit, FloatArray, LineModel, wrap_angle
+from island_msgs_py.types import (
+    ControlStrategy,
+    Exit,
+    ExitSide,
+    FloatArray,
+    LineModel,
+    PrimitiveKind,
+    StrategyPrimitive,
+    wrap_angle,
+)
 from scipy.spatial import cKDTree
 
+from island_mapping.core.builder.opening import OpeningExit
 from island_mapping.core.explore.config import ExitConfig, ExploreError
 
 # Spacing of the points sampled along a lane [m]; gates are looked for this far out at least.
@@ -184,6 +194,118 @@ def find_exits(ev: ExitEvidence, cfg: ExitConfig | None = None) -> tuple[Exit, .
         kept.append((wrap_angle(ev.arrival_rad), 2.0 * c.clearance_m + c.min_width_m))
     kept.sort(key=lambda e: e[0])
     return tuple(Exit(k, float(h), float(w)) for k, (h, w) in enumerate(kept))
+
+
+def axis_widths(segments: FloatArray) -> tuple[float, float]:
+    """The free width across the origin along the island's two axes (x, y) [m]: the nearest
+    wall of the model ahead plus behind, left plus right (inf where none is seen)."""
+    model = LineModel(np.asarray(segments, dtype=np.float64).reshape(-1, 4))
+    d = [_wall_along(model, a) for a in _AXES_RAD]
+    return d[0] + d[2], d[1] + d[3]
+
+
+def _wall_along(model: LineModel, heading_rad: float) -> float:
+    """Distance from the origin to the first wall segment of `model` along heading_rad [m]."""
+    segs = model.segments
+    if segs.shape[0] == 0:
+        return math.inf
+    u = np.array([math.cos(heading_rad), math.sin(heading_rad)])
+    a, d = segs[:, :2], segs[:, 2:] - segs[:, :2]
+    denom = u[0] * d[:, 1] - u[1] * d[:, 0]
+    ok = np.abs(denom) > 1e-9
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (a[:, 0] * d[:, 1] - a[:, 1] * d[:, 0]) / denom
+        s = (a[:, 0] * u[1] - a[:, 1] * u[0]) / denom
+    hit = ok & (t > 0) & (s >= 0) & (s <= 1)
+    return float(t[hit].min()) if np.any(hit) else math.inf
+
+
+def through_gates(exits: tuple[Exit, ...], ev: ExitEvidence, cfg: ExitConfig | None = None
+                  ) -> tuple[Exit, ...]:
+    """In open space (a room or a hall: the model's free width along both island axes at least
+    `open_width_m`) the way out is through the gaps in its walls, not toward them: the
+    exits whose ray passes a gate (a doorway, a hallway's mouth), and the arrival. In a
+    hallway, all of them."""
+    c = cfg if cfg is not None else ExitConfig()
+    if min(axis_widths(ev.segments)) < c.open_width_m:
+        return exits
+    arrival = None if ev.arrival_rad is None else arrival_exit(exits, ev.arrival_rad, c)
+    model = LineModel(ev.segments)
+    keep = [e for e in exits if e is arrival or wall_gap(model, e.heading_rad, c) is not None]
+    return tuple(Exit(k, e.heading_rad, e.width_m) for k, e in enumerate(keep))
+
+
+def wall_gap(model: LineModel, heading_rad: float, cfg: ExitConfig,
+             max_m: float = 6.0) -> float | None:
+    """Where the ray from the origin along heading_rad first crosses a gap in a wall within
+    max_m [m] (its distance [m]): between the ends of two wall segments of the model that
+    lie on one line (within gap_line_m of it, gap_line_deg of its direction) and at least
+    min_width_m apart, the crossing between them. None when it crosses none: the ray runs
+    into a wall, or out where no wall was seen (an unseen corner is no way out)."""
+    segs = model.segments
+    if segs.shape[0] < 2:
+        return None
+    u = np.array([math.cos(heading_rad), math.sin(heading_rad)])
+    best: float | None = None
+    for i in range(segs.shape[0]):
+        for j in range(i + 1, segs.shape[0]):
+            t = _gap_crossing(segs[i], segs[j], u, cfg)
+            if t is not None and t <= max_m and (best is None or t < best):
+                best = t
+    return best
+
+
+def _gap_crossing(a: FloatArray, b: FloatArray, u: FloatArray, cfg: ExitConfig
+                  ) -> float | None:
+    """The distance along the ray u at which it passes between collinear segments a and b
+    (through the gap between their nearest ends), or None."""
+    da, db = a[2:] - a[:2], b[2:] - b[:2]
+    la, lb = float(np.hypot(*da)), float(np.hypot(*db))
+    if la < 1e-6 or lb < 1e-6:
+        return None
+    ua, ub = da / la, db / lb
+    if abs(ua[0] * ub[1] - ua[1] * ub[0]) > math.sin(math.radians(cfg.gap_line_deg)):
+        return None
+    n = np.array([-ua[1], ua[0]])
+    if abs(float(n @ (b[:2] - a[:2]))) > cfg.gap_line_m or abs(float(n @ (b[2:] - a[:2]))) > (
+        cfg.gap_line_m
+    ):
+        return None
+    sa = sorted((0.0, la))
+    sb = sorted((float(ua @ (b[:2] - a[:2])), float(ua @ (b[2:] - a[:2]))))
+    lo, hi = (sa[1], sb[0]) if sb[0] >= sa[1] else (sb[1], sa[0])
+    if hi - lo < cfg.min_width_m:
+        return None  # overlapping or too narrow a gap
+    denom = float(u @ n)
+    if abs(denom) < 1e-9:
+        return None
+    t = float(n @ a[:2]) / denom  # the ray meets the wall line at t
+    if t <= 0.0:
+        return None
+    along = float(ua @ (t * u - a[:2]))
+    return t if lo < along < hi else None
+
+
+def opening_exits(exits: tuple[Exit, ...], ev: ExitEvidence, opening: OpeningExit,
+                  cfg: ExitConfig | None = None) -> tuple[Exit, ...]:
+    """The exits of an island built inside a side opening (theta 0 into it): the arrival, the
+    exits leading on into the opening (within `opening_ahead_deg` of theta 0), and
+    the hallway's continuation past the opening as a side exit (back out to the hallway's
+    middle, then a quarter turn the way the follower was going). The hallway behind (the way
+    the robot came) is the arrival's."""
+    c = cfg if cfg is not None else ExitConfig()
+    arrival = None if ev.arrival_rad is None else arrival_exit(exits, ev.arrival_rad, c)
+    keep = [e for e in exits if e is arrival or abs(e.heading_rad) <= math.radians(
+        c.opening_ahead_deg)]
+    out = [Exit(k, e.heading_rad, e.width_m) for k, e in enumerate(keep)]
+    back = round(100.0 * max(opening.back_m, 0.0))
+    steps = (StrategyPrimitive(PrimitiveKind.ROT, 180),) + (
+        (StrategyPrimitive(PrimitiveKind.GO, back),) if back > 0 else ())
+    side = ExitSide.LEFT if opening.side > 0 else ExitSide.RIGHT
+    out.append(Exit(len(out), wrap_angle(math.pi + opening.side * 0.5 * math.pi),
+                    max(opening.width_m, c.min_width_m), prefix=ControlStrategy(steps),
+                    side=side))
+    return tuple(out)
 
 
 def nearest_exit(exits: tuple[Exit, ...], heading_rad: float, within_deg: float) -> Exit | None:

@@ -25,9 +25,15 @@ from island_msgs_py.types import Exit, FloatArray, Island
 
 from island_mapping.core.builder.diagnostics import Refusal
 from island_mapping.core.builder.hooks import BuilderHooks, RevisitGate, facing_exit
+from island_mapping.core.builder.opening import OpeningExit
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition
 from island_mapping.core.explore.config import ExplorerConfig
-from island_mapping.core.explore.exits import ExitEvidence, find_exits
+from island_mapping.core.explore.exits import (
+    ExitEvidence,
+    find_exits,
+    opening_exits,
+    through_gates,
+)
 from island_mapping.core.graph import TopoGraph
 
 
@@ -68,8 +74,10 @@ def explorer_hooks(cfg: ExplorerConfig, graph: Callable[[], TopoGraph]) -> Build
     gate (module docstring); `graph` returns the latest map (the exits' states)."""
 
     def exits(segments: FloatArray, points: FloatArray, driven: FloatArray,
-              arrival_rad: float | None) -> tuple[Exit, ...]:
-        return find_exits(ExitEvidence(segments, points, driven, arrival_rad), cfg.exit)
+              arrival_rad: float | None, opening: OpeningExit | None) -> tuple[Exit, ...]:
+        ev = ExitEvidence(segments, points, driven, arrival_rad)
+        found = through_gates(find_exits(ev, cfg.exit), ev, cfg.exit)
+        return found if opening is None else opening_exits(found, ev, opening, cfg.exit)
 
     return BuilderHooks(managed=True, find_exits=exits,
                         accept_revisit=loop_closure_gate(cfg, graph),

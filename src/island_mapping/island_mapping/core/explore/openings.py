@@ -197,22 +197,26 @@ def side_departure(d: Drive, ex: Exit, origin_theta: float, cfg: ExplorerConfig
                    ) -> Generator[Command, None, bool]:
     """From its island's origin (facing odometric heading origin_theta [rad]: the island's
     theta 0): the side exit's prefix, the opening sought by perception over the last
-    side_search_m of it and as far past, a quarter turn into it (through it, door_through_m,
+    side_search_m of it and as far past (not when the prefix drives no more than
+    side_direct_m: odometry is good enough there, and it ends where the opening is), a
+    quarter turn into it (through it, door_through_m,
     when it is a doorway: narrower than door_max_width_m); False when it is not found open or
     the time (d.deadline_s) ran out."""
     assert ex.prefix is not None and ex.side is not None
-    way, cut = approach(ex.prefix, cfg.side_search_m)
+    near = sum(s.metres for s in ex.prefix.steps if s.kind is PrimitiveKind.GO) <= (
+        cfg.side_direct_m)
+    way, cut = (ex.prefix, 0.0) if near else approach(ex.prefix, cfg.side_search_m)
     try:
         yield from rotate_to(d, origin_theta)
         yield from execute_strategy(d, way)
-        if not (yield from seek_side(d, ex.side, cut + cfg.side_search_m,
-                                     0.5 * min(ex.width_m, 2.0))):
+        if not near and not (yield from seek_side(d, ex.side, cut + cfg.side_search_m,
+                                                  0.5 * min(ex.width_m, 2.0))):
             return False
         turn = math.pi / 2 if ex.side is ExitSide.LEFT else -math.pi / 2
         yield from rotate_to(d, wrap_angle(d.sense.odom.theta + turn))
         # the robot's whole path must be free: turned short of a doorway's middle, a jamb in
         # the way holds the follower against the wall for the whole exit cap
-        ahead = perceive(d.sense.ranges_m, d.sense.angles_rad, d.perception).front_m
+        ahead = perceive(d.sense.ranges_m, d.sense.angles_rad, d.perception).front_cone_m
         if ahead < cfg.depart_min_free_m:
             return False
         if ex.width_m <= cfg.door_max_width_m:  # through the doorway before the follower
