@@ -134,6 +134,7 @@ class Following:
     strategy: ControlStrategy
     near_last_island: bool
     at_opening: bool = False
+    in_hallway: bool = True  # the quick check may start an attempt here
 
 
 def follow_step(
@@ -163,6 +164,8 @@ def follow_step(
     if now.at_opening:  # the place's good point is in the opening, not at the robot
         gate.end_deferral()
         return (FollowStep.FOLLOW if try_revisit() else FollowStep.ATTEMPT), 0.0
+    if not now.in_hallway:
+        return FollowStep.FOLLOW, 0.0
     q = quick()
     if q < cfg.quick_reject_fraction * eq3_bound(cfg, now.epsilon_m):
         gate.end_deferral()

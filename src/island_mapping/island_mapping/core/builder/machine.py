@@ -303,7 +303,8 @@ class IslandBuilder(BuilderView):
         odom, cfg = self._odom, self.config
         now = Following(self.epsilon_m, self._t, self._path_m, self._strategy,
                         self.ledger.near_last_island(odom, cfg.vicinity_m),
-                        self._openings.pending(self._path_m))
+                        self._openings.pending(self._path_m),
+                        self._openings.in_hallway(self._path_m))
         step, quick = follow_step(
             self._gate, cfg, now,
             lambda: self.measures.of_points(concat(self._history.quick_points()),

@@ -54,6 +54,7 @@ class OpeningRun:
     centre_m: float | None = None
     taken: bool = False
     walled_m: float | None = None  # path when both sides last became walls
+    last_walled_m: float | None = None  # path when both sides were last seen walls
     left: int = 0  # scans of the run with the left side open
     right: int = 0
     side: int = 0
@@ -80,6 +81,7 @@ class OpeningRun:
         if self.start_m is not None and path_m - self.start_m >= cfg.min_m:
             self._offer(0.5 * (self.start_m + path_m))
         self.start_m, self.taken = None, False
+        self.last_walled_m = path_m
         if self.walled_m is None:
             self.walled_m = path_m
 
@@ -229,6 +231,15 @@ class Openings:
         width = seen.left_dist_m + seen.right_dist_m
         if not (seen.left_open or seen.right_open) and math.isfinite(width):
             self.hall_width_m += _WIDTH_GAIN * (width - self.hall_width_m)
+
+    def in_hallway(self, path_m: float) -> bool:
+        """Were both sides walls within the last hallway_recent_m of path (or is the opening
+        logic off: then everywhere counts)? In a room or a hall the follower runs along one
+        wall, and its corners are not places of their own (the room's island stands at its
+        door)."""
+        last = self.run.last_walled_m
+        return not self.cfg.enabled or (
+            last is not None and path_m - last <= self.cfg.hallway_recent_m)
 
     def pending(self, path_m: float) -> bool:
         """An opening passed in a hallway waits to be entered (the robot at path_m [m]); one

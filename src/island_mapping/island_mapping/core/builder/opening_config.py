@@ -39,6 +39,12 @@ class OpeningConfig:
         metadata={"help": "an opening not entered within this much path after its middle is "
                           "dropped (the robot was near the last island) [m]"},
     )
+    hallway_recent_m: float = field(
+        default=2.0,
+        metadata={"help": "with openings on, the quick check may start an attempt only where "
+                          "both sides were walls within this much path (a hallway, its corner "
+                          "or end), not along a room's wall [m]"},
+    )
     narrow_m: float = field(
         default=0.7,
         metadata={"help": "both side walls nearer than this (robot centre): a doorway's "
@@ -67,6 +73,7 @@ class OpeningConfig:
     )
 
     def __post_init__(self) -> None:
-        _check("OpeningConfig", self, ("min_m", "hall_m", "long_m", "stale_m", "narrow_m", "past_m",
+        _check("OpeningConfig", self, ("min_m", "hall_m", "long_m", "stale_m", "hallway_recent_m",
+                                       "narrow_m", "past_m",
                                        "room_in_m", "branch_m", "max_in_m", "clearance_m"),
                strict=False)

@@ -181,6 +181,13 @@ class ExplorerConfig:
                           "takes the robot back to the island it left and marks the exit "
                           "blocked [s]"},
     )
+    open_space_cap_s: float = field(
+        default=90.0,
+        metadata={"help": "the builder's exploration of an exit is stopped as past exit_cap_s "
+                          "once the robot has gone this long without walls on both sides: the "
+                          "hall follower runs round a room, where no place of its own is left "
+                          "(the room's island stands at its door) [s]"},
+    )
     depart_min_free_m: float = field(
         default=1.2,
         metadata={"help": "an exit whose way ahead (the sonar, facing it) is free less than "
@@ -266,6 +273,11 @@ class ExplorerConfig:
         metadata={"help": "islands up to this route length away are compared for duplicates "
                           "(their frames dead-reckoned along the edges' strategies) [m]"},
     )
+    failed_edge_penalty_m: float = field(
+        default=100.0,
+        metadata={"help": "an edge whose arrival did not localize counts this much longer in "
+                          "later routes (the robot turned back to the island it left) [m]"},
+    )
     side_direct_m: float = field(
         default=3.0,
         metadata={"help": "a side exit whose prefix drives no farther than this is reached by "
@@ -293,14 +305,14 @@ class ExplorerConfig:
     )
 
     def __post_init__(self) -> None:
-        _check_numbers(self, ("exit_cap_s", "stuck_s", "stuck_m", "return_max_shift_m",
-                              "door_max_width_m",
+        _check_numbers(self, ("exit_cap_s", "open_space_cap_s", "stuck_s", "stuck_m",
+                              "return_max_shift_m", "door_max_width_m",
                               "door_through_m", "map_wait_s", "look_buffer_s", "revisit_near_m",
                               "revisit_max_mahalanobis2"),
                        ("depart_min_free_m", "lane_snap_m"))
         _check_numbers(self, ("side_min_width_m", "side_near_island_m", "side_merge_m",
                               "side_merge_deg", "side_chain_m", "side_search_m"),
-                       ("side_max_turn_deg", "side_direct_m"))
+                       ("side_max_turn_deg", "side_direct_m", "failed_edge_penalty_m"))
         if isinstance(self.retries_per_exit, bool) or not isinstance(self.retries_per_exit, int) \
                 or self.retries_per_exit < 0:
             raise ExploreError("ExplorerConfig.retries_per_exit: expected an int >= 0, got "

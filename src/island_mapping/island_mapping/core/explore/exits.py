@@ -196,21 +196,31 @@ def find_exits(ev: ExitEvidence, cfg: ExitConfig | None = None) -> tuple[Exit, .
     return tuple(Exit(k, float(h), float(w)) for k, (h, w) in enumerate(kept))
 
 
+_WIDTH_PROBES_M = (-0.5, 0.0, 0.5)
+"""Offsets of the lines across which the free width is measured, each side of the origin [m]."""
+
+
 def axis_widths(segments: FloatArray) -> tuple[float, float]:
-    """The free width across the origin along the island's two axes (x, y) [m]: the nearest
-    wall of the model ahead plus behind, left plus right (inf where none is seen)."""
+    """The free width around the origin along the island's two axes (x, y) [m]: the nearest
+    wall of the model ahead plus behind (left plus right), the narrowest over lines through
+    points up to 0.5 m either side of the origin (a hallway's walls may begin just behind it);
+    inf where none is seen."""
     model = LineModel(np.asarray(segments, dtype=np.float64).reshape(-1, 4))
-    d = [_wall_along(model, a) for a in _AXES_RAD]
-    return d[0] + d[2], d[1] + d[3]
+    out = []
+    for a, b in ((0, 2), (1, 3)):
+        n = np.array([-math.sin(_AXES_RAD[a]), math.cos(_AXES_RAD[a])])
+        out.append(min(_wall_along(model, _AXES_RAD[a], o * n) + _wall_along(
+            model, _AXES_RAD[b], o * n) for o in _WIDTH_PROBES_M))
+    return out[0], out[1]
 
 
-def _wall_along(model: LineModel, heading_rad: float) -> float:
-    """Distance from the origin to the first wall segment of `model` along heading_rad [m]."""
+def _wall_along(model: LineModel, heading_rad: float, start: FloatArray) -> float:
+    """Distance from `start` to the first wall segment of `model` along heading_rad [m]."""
     segs = model.segments
     if segs.shape[0] == 0:
         return math.inf
     u = np.array([math.cos(heading_rad), math.sin(heading_rad)])
-    a, d = segs[:, :2], segs[:, 2:] - segs[:, :2]
+    a, d = segs[:, :2] - start, segs[:, 2:] - segs[:, :2]
     denom = u[0] * d[:, 1] - u[1] * d[:, 0]
     ok = np.abs(denom) > 1e-9
     with np.errstate(divide="ignore", invalid="ignore"):

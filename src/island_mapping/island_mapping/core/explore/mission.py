@@ -176,7 +176,9 @@ class Explorer:
         self._here: int | None = None
         self._target: tuple[int, int] | None = None
         self.reason = ""
+        self._penalty: dict[frozenset[int], float] = {}  # edges whose arrival failed
         self.counts = {"exits_explored": 0, "exits_blocked": 0, "lost": 0, "returns": 0,
+                       "retreats": 0,
                        "arrivals": 0, "untrusted_arrivals": 0, "side_exits_added": 0,
                        "side_exits_explored": 0}
 
@@ -237,7 +239,8 @@ class Explorer:
             yield from self._await_map(here.island_id)
             extra = (known_space_costs(self.graph, here.island_id, self.cfg.novelty)
                      if self.cfg.novelty.enabled else None)
-            target = nearest_unexplored(self.graph, here.island_id, self._blocked, extra)
+            target = nearest_unexplored(self.graph, here.island_id, self._blocked, extra,
+                                        self._penalty)
             if target is None:
                 self.state, self.reason = ExplorerState.DONE, "no unexplored exit left"
                 self._target = None
@@ -254,6 +257,8 @@ class Explorer:
             arrived, last = yield from self._navigate(here, target)
             if arrived is None:
                 return (yield from self._lost(last))
+            if arrived.island_id != target.island_id:  # turned back: choose again
+                return arrived
             here = arrived
         self.state = ExplorerState.DEPARTING
         ex = _exit(self.graph.get_island(here.island_id), target.exit_index)
@@ -326,10 +331,31 @@ class Explorer:
                                                    self._fixed)
             except RouteTimeoutError:
                 return None, last
-            if not fix.trusted:
-                return None, last
+            if not fix.trusted:  # back the way it came, to the island it left
+                self._penalty[frozenset((e.source, e.target))] = self._penalty.get(
+                    frozenset((e.source, e.target)), 0.0) + self.cfg.failed_edge_penalty_m
+                back = yield from self._retreat(e, last)
+                return (back, last) if back is not None else (None, last)
             last = self._dock(e.target)
         return last, last
+
+    def _retreat(self, e: Edge, last: _Here) -> Generator[Step, None, _Here | None]:
+        """After an arrival that did not localize: drive the edge's strategy reversed back to
+        the island it left and localize there from where odometry says the robot is (no
+        search along a hallway); docked there, or None (lost)."""
+        d = self._drive
+        assert d is not None
+        self.counts["retreats"] += 1
+        d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
+        island = self.graph.get_island(last.island_id)
+        try:
+            yield from execute_strategy(d, reverse_strategy(e.strategy))
+            near = self._sense.odom.relative_to(last.origin_odom)
+            fix = yield from localize_and_dock(d, island, near, self._fixed,
+                                               self.cfg.return_max_shift_m)
+        except RouteTimeoutError:
+            return None
+        return self._dock(last.island_id) if fix.trusted else None
 
     def _fixed(self, fix: Fix) -> None:
         self.counts["arrivals"] += 1
@@ -391,13 +417,15 @@ class Explorer:
 
     def _handed_over(self, here: _Here, exit_index: int | None
                      ) -> Generator[Step, None, _Here]:
-        """The builder side drives until it hands back at an island; past exit_cap_s the
+        """The builder side drives until it hands back at an island; past exit_cap_s (or after
+        open_space_cap_s without both sides walls: the follower circles a room) the
         explorer asks it to stop and drives the robot back to `here`, and the exit is blocked.
         exit_index None: leaving after getting lost (nothing to block)."""
         self._follower = ControlStrategy(())
         t0 = self._sense.t_s
         watch = OpeningWatch(self.cfg, self._since_dock.strategy())
         stuck = _StuckWatch(self.cfg.stuck_s, self.cfg.stuck_m, self._sense)
+        walled_t = t0  # when both sides were last walls
         edges: list[Edge] = []
         while True:
             for e in self._events:
@@ -415,10 +443,13 @@ class Explorer:
                 if e.kind is EventKind.STOPPED:
                     self._note_openings(here.island_id, watch)
                     return (yield from self._return(here, exit_index))
+            seen = perceive(self._sense.ranges_m, self._sense.angles_rad, self.perception)
             if self.cfg.side_exits:
-                watch.update(perceive(self._sense.ranges_m, self._sense.angles_rad,
-                                      self.perception), self._follower, self._sense.odom.theta)
-            if self._sense.t_s - t0 > self.cfg.exit_cap_s or stuck.update(self._sense):
+                watch.update(seen, self._follower, self._sense.odom.theta)
+            if not (seen.left_open or seen.right_open):
+                walled_t = self._sense.t_s  # a hallway (or a doorway): not circling a room
+            if self._sense.t_s - t0 > self.cfg.exit_cap_s or stuck.update(self._sense) or (
+                    self._sense.t_s - walled_t > self.cfg.open_space_cap_s):
                 self._requests.append(Abort())
             yield None
 

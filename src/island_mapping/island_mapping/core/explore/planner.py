@@ -30,22 +30,31 @@ class Target:
     distance_m: float
 
 
-def _neighbours(graph: TopoGraph) -> dict[int, list[tuple[int, float]]]:
+Penalties = Mapping[frozenset[int], float]
+"""Extra length [m] charged on the edge between two islands (routes that failed there)."""
+
+
+def _neighbours(graph: TopoGraph, penalty: Penalties | None = None
+                ) -> dict[int, list[tuple[int, float]]]:
     out: dict[int, list[tuple[int, float]]] = {i: [] for i in graph.island_ids()}
+    pen = penalty if penalty is not None else {}
     for e in graph.iter_edges():
-        out[e.source].append((e.target, e.weight))
-        out[e.target].append((e.source, e.weight))
+        w = e.weight + pen.get(frozenset((e.source, e.target)), 0.0)
+        out[e.source].append((e.target, w))
+        out[e.target].append((e.source, w))
     for nbrs in out.values():
         nbrs.sort()
     return out
 
 
-def distances_from(graph: TopoGraph, start: int) -> tuple[dict[int, float], dict[int, int]]:
+def distances_from(graph: TopoGraph, start: int, penalty: Penalties | None = None
+                   ) -> tuple[dict[int, float], dict[int, int]]:
     """Shortest route lengths from `start` to every reachable island [m] and each one's
-    predecessor on its route (Dijkstra; ties broken by island id)."""
+    predecessor on its route (Dijkstra; ties broken by island id; `penalty` charged on
+    edges)."""
     if start not in graph.island_ids():
         raise ExploreError(f"planner: unknown island {start}")
-    nbrs = _neighbours(graph)
+    nbrs = _neighbours(graph, penalty)
     dist = {start: 0.0}
     prev: dict[int, int] = {}
     heap = [(0.0, start)]
@@ -72,12 +81,14 @@ def route_to(prev: dict[int, int], start: int, goal: int) -> tuple[int, ...]:
 
 
 def nearest_unexplored(graph: TopoGraph, start: int, skip: Collection[tuple[int, int]] = (),
-                       extra_m: Mapping[tuple[int, int], float] | None = None) -> Target | None:
+                       extra_m: Mapping[tuple[int, int], float] | None = None,
+                       penalty: Penalties | None = None) -> Target | None:
     """The nearest (island, exit) with an unexplored exit reachable from `start`, not in
     `skip` (a side exit is as far as its island plus its prefix's driving; an exit in
-    `extra_m` that much farther, e.g. `novelty.known_space_costs`); None when none is left."""
+    `extra_m` that much farther, e.g. `novelty.known_space_costs`; edges in `penalty` that
+    much longer); None when none is left."""
     extra = extra_m if extra_m is not None else {}
-    dist, prev = distances_from(graph, start)
+    dist, prev = distances_from(graph, start, penalty)
     best: tuple[float, int, int, float] | None = None
     for iid, d in dist.items():
         for e in graph.get_island(iid).exits:
