@@ -23,18 +23,27 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 
 from island_msgs_py.hall_perception import HallPerceptionConfig, Perception, perceive
-from island_msgs_py.types import FloatArray, Pose2D, PrimitiveKind, StrategyPrimitive, wrap_angle
+from island_msgs_py.types import (
+    ControlStrategy,
+    FloatArray,
+    Pose2D,
+    PrimitiveKind,
+    StrategyPrimitive,
+    wrap_angle,
+)
 
 from island_mapping.core.builder.config import StarConfig
 from island_mapping.core.builder.motion import (
     Twist,
     along_line,
     drive_line,
+    drive_onto_origin,
     return_to_centre,
     rot,
     turn_to,
 )
 from island_mapping.core.builder.opening_config import OpeningConfig
+from island_mapping.core.graph import reverse_strategy
 
 _TURNED_RAD = math.radians(30.0)
 """The follower turned off the hallway: heading changed by more than this [rad]."""
@@ -102,12 +111,14 @@ class OpeningRun:
 @dataclass(frozen=True)
 class OpeningExit:
     """What an island built inside an opening tells its exit finder (island frame, theta 0
-    into the opening): side 1 the opening was on the follower's left, -1 right; back_m from
-    the origin straight back to the hallway's middle [m]; the hallway's width_m [m]; narrow:
-    the robot came through a doorway's passage (a room lies behind it)."""
+    into the opening): side 1 the opening was on the follower's left, -1 right; `back` the way
+    from the origin back out to the hallway's middle (facing into the opening there, as the
+    robot stood before it drove in); the hallway's width_m [m]; narrow:
+    the robot came through a doorway (a passage, or a gap in a thin wall with open space
+    behind): it stands in a room."""
 
     side: int
-    back_m: float
+    back: ControlStrategy
     width_m: float
     narrow: bool
 
@@ -132,8 +143,14 @@ class Entry:
     phase: EntryPhase = EntryPhase.CENTRE
     travelled_m: float = 0.0
     narrow_end_m: float | None = None
+    opened: bool = False  # a side opened out once in: behind a doorway in a thin wall
     out: list[Pose2D] = field(default_factory=list)  # the way back out, still to drive
     hall_width_m: float = 2.0  # of the hallway the follower drove [m]
+
+    @property
+    def room(self) -> bool:
+        """Did the robot cross a doorway into a room (a passage, or open space behind)?"""
+        return self.narrow_end_m is not None or self.opened
 
     @property
     def heading(self) -> Pose2D:
@@ -159,8 +176,10 @@ class Entry:
             if seen.left_dist_m < cfg.narrow_m and seen.right_dist_m < cfg.narrow_m:
                 self.narrow_end_m = self.travelled_m  # in a passage: centre between its sides
                 lateral = 0.5 * (seen.right_dist_m - seen.left_dist_m)
-            goal = cfg.branch_m if self.narrow_end_m is None else min(
-                max(self.narrow_end_m + cfg.past_m, cfg.room_in_m), cfg.max_in_m)
+            elif self.travelled_m > cfg.narrow_m and (seen.left_open or seen.right_open):
+                self.opened = True  # past a doorway in a thin wall: a room opens out
+            goal = cfg.branch_m if not self.room else min(
+                max(cfg.room_in_m, (self.narrow_end_m or 0.0) + cfg.past_m), cfg.max_in_m)
             # Only the echo straight ahead stops it: the oblique transducers hear a doorway's
             # wall beside the opening, on their axes, as if in the way.
             if (self.travelled_m < goal - sc.position_tol_m
@@ -188,8 +207,11 @@ class Entry:
     def exit_info(self, shift: Pose2D) -> OpeningExit:
         """What the island built with its origin at `shift` (star anchor frame) tells its exit
         finder."""
-        return OpeningExit(self.side, self.travelled_m + shift.x, self.hall_width_m,
-                           self.narrow_end_m is not None)
+        into = [StrategyPrimitive(PrimitiveKind.GO, round(100 * self.travelled_m))]
+        if shift.x != 0.0 or shift.y != 0.0:  # the origin moved off the anchor: then onto it
+            into += drive_onto_origin(Pose2D(-shift.x, -shift.y, 0.0), 0.0)
+        back = reverse_strategy(ControlStrategy(tuple(s for s in into if s.value != 0)))
+        return OpeningExit(self.side, back, self.hall_width_m, self.room)
 
     def leave(self) -> None:
         """Start the way back out: to the opening's middle, then where the follower stopped."""

@@ -48,7 +48,8 @@ class OpeningConfig:
     narrow_m: float = field(
         default=0.7,
         metadata={"help": "both side walls nearer than this (robot centre): a doorway's "
-                          "passage [m]"},
+                          "passage; a side opening out after this far in: a doorway in a "
+                          "thin wall, a room behind [m]"},
     )
     past_m: float = field(
         default=0.6, metadata={"help": "the star starts this far past a passage's end [m]"}
@@ -60,7 +61,7 @@ class OpeningConfig:
     )
     branch_m: float = field(
         default=1.2,
-        metadata={"help": "into an opening with no narrow passage (a side hallway) the star "
+        metadata={"help": "into an opening that is no doorway (a side hallway) the star "
                           "starts this far in [m]"},
     )
     max_in_m: float = field(

@@ -24,19 +24,17 @@ from dataclasses import dataclass
 import numpy as np
 from island_msgs_py.geometry import point_segment_distance
 from island_msgs_py.types import (
-    ControlStrategy,
     Exit,
     ExitSide,
     FloatArray,
     LineModel,
-    PrimitiveKind,
-    StrategyPrimitive,
     wrap_angle,
 )
 from scipy.spatial import cKDTree
 
 from island_mapping.core.builder.opening import OpeningExit
 from island_mapping.core.explore.config import ExitConfig, ExploreError
+from island_mapping.core.graph import strategy_displacement
 
 # Spacing of the points sampled along a lane [m]; gates are looked for this far out at least.
 _RAY_STEP_M = 0.1
@@ -299,22 +297,24 @@ def _gap_crossing(a: FloatArray, b: FloatArray, u: FloatArray, cfg: ExitConfig
 def opening_exits(exits: tuple[Exit, ...], ev: ExitEvidence, opening: OpeningExit,
                   cfg: ExitConfig | None = None) -> tuple[Exit, ...]:
     """The exits of an island built inside a side opening (theta 0 into it): the arrival, the
-    exits leading on into the opening (within `opening_ahead_deg` of theta 0), and
+    exits leading on into the opening (within `opening_ahead_deg` of theta 0; none behind a
+    doorway: the island stands in the room and covers it, and a room's other doorway is
+    found from its own hallway), and
     the hallway's continuation past the opening as a side exit (back out to the hallway's
     middle, then a quarter turn the way the follower was going). The hallway behind (the way
     the robot came) is the arrival's."""
     c = cfg if cfg is not None else ExitConfig()
     arrival = None if ev.arrival_rad is None else arrival_exit(exits, ev.arrival_rad, c)
-    keep = [e for e in exits if e is arrival or abs(e.heading_rad) <= math.radians(
-        c.opening_ahead_deg)]
+    keep = [e for e in exits if e is arrival or (not opening.narrow and abs(
+        e.heading_rad) <= math.radians(c.opening_ahead_deg))]
     out = [Exit(k, e.heading_rad, e.width_m) for k, e in enumerate(keep)]
-    back = round(100.0 * max(opening.back_m, 0.0))
-    steps = (StrategyPrimitive(PrimitiveKind.ROT, 180),) + (
-        (StrategyPrimitive(PrimitiveKind.GO, back),) if back > 0 else ())
-    side = ExitSide.LEFT if opening.side > 0 else ExitSide.RIGHT
-    out.append(Exit(len(out), wrap_angle(math.pi + opening.side * 0.5 * math.pi),
-                    max(opening.width_m, c.min_width_m), prefix=ControlStrategy(steps),
-                    side=side))
+    # Back at the hallway's middle facing into the opening, a quarter turn away from the
+    # side it lay on faces the way the follower was going.
+    side = ExitSide.RIGHT if opening.side > 0 else ExitSide.LEFT
+    end = strategy_displacement(opening.back)
+    turn = -0.5 * math.pi if side is ExitSide.RIGHT else 0.5 * math.pi
+    out.append(Exit(len(out), wrap_angle(end.theta + turn), max(opening.width_m, c.min_width_m),
+                    prefix=opening.back, side=side))
     return tuple(out)
 
 

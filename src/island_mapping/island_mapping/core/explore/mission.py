@@ -431,7 +431,8 @@ class Explorer:
             for e in self._events:
                 edges.extend([e.edge] if e.edge is not None else [])
                 if e.kind is EventKind.HANDED_BACK and e.accepted_island_id is not None:
-                    self._note_openings(here.island_id, watch)
+                    if exit_index is not None:  # a lost robot's wander is no way to an opening
+                        self._note_openings(here.island_id, watch)
                     if exit_index is not None and e.accepted_island_id == here.island_id:
                         self._mark_blocked(here.island_id, exit_index)  # back: nothing new
                     elif exit_index is not None:
@@ -441,7 +442,8 @@ class Explorer:
                     self._awaited.extend(_updates_of(self._events))
                     return self._docked_by_builder(e)
                 if e.kind is EventKind.STOPPED:
-                    self._note_openings(here.island_id, watch)
+                    if exit_index is not None:
+                        self._note_openings(here.island_id, watch)
                     return (yield from self._return(here, exit_index))
             seen = perceive(self._sense.ranges_m, self._sense.angles_rad, self.perception)
             if self.cfg.side_exits:
