@@ -98,20 +98,29 @@ def test_an_imported_sonar_ring_replays_as_a_ring(tmp_path: Path, room: str) -> 
     assert main(["bag", "import-carmen", str(paths["log"]), "--out", str(bag)]) == 0
     from island_mapping.bag.scanlog import read_scan_log
 
-    log, _ = read_scan_log(bag)
+    log, counts = read_scan_log(bag)
+    assert counts["scans_before_odometry"] == 0  # a raw log's ODOM line precedes its scans
     assert log.geometry.sensor.value == "sonar ring"
     assert math.degrees(log.geometry.increment_rad) == pytest.approx(22.5)
     assert log.reference is None  # no corrected poses, so no /gmapping_pose
     # Ranges from the robot's centre: the same points as the log's, from each transducer.
     world = load_world(room)
     pts = islands.scan_points(log.ranges_m[0], log.geometry.angles(), 20.0)
-    true0 = sim.truth[1]  # the bag's first scan is the log's second (none before odometry)
-    assert np.median(point_segment_distance(from_frame(pts, true0),
+    assert np.median(point_segment_distance(from_frame(pts, sim.truth[0]),
                                             world.segments).min(axis=1)) < 0.03
-    assert main(["replay", str(bag), "--passive", "--reference", str(paths["reference"]),
-                 "--out", str(tmp_path / "rp")]) == 0
-    rp = json.loads((tmp_path / "rp" / "metrics.json").read_text())
+    # The same pipeline either way: the recording builds the log's islands, localizes the
+    # same scans and covers the same relations (errors equal to float32 ranges).
+    both = ["--relations", str(paths["relations"]), "--reference", str(paths["reference"])]
+    assert main(["replay", str(bag), "--passive", *both, "--out", str(tmp_path / "rp")]) == 0
+    assert main(["eval-relations", "--log", str(paths["log"]), *both,
+                 "--out", str(tmp_path / "ev")]) == 0
+    rp, ev = (json.loads((tmp_path / d / "metrics.json").read_text()) for d in ("rp", "ev"))
     assert rp["mode"].startswith("sonar ring") and rp["island_count"] >= 1
+    for key in ("scans", "island_count", "localized_scans"):
+        assert rp[key] == ev[key], key
+    assert rp["bridged"]["covered_relations"] == ev["bridged"]["covered_relations"] > 0
+    assert rp["bridged"]["mean_trans_err_m"] == pytest.approx(ev["bridged"]["mean_trans_err_m"],
+                                                              abs=1e-4)
 
 
 def test_import_refuses_a_laser_a_laserscan_cannot_place(

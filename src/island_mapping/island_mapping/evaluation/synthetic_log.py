@@ -179,8 +179,16 @@ def carmen_lines(log: SyntheticLog, *, unix_times: bool = False, g_times: bool =
     off = UNIX_START_S if unix_times else 0.0
     out = [f"# synthetic CARMEN log of {log.name} (island_mapping.evaluation.synthetic_log)"]
     out += _param_lines(log, params)
-    prev_corr = np.zeros(3)
+    # A SONAR log has no corrected poses: its ODOM lines are the raw odometry itself (a raw
+    # CARMEN log's), which composing onto the previous raw pose instead of the corrected one
+    # gives; the first is written before the first scan.
+    raw_only = log.kind == "SONAR"
+    prev_corr = log.odometry[0] if raw_only else np.zeros(3)
     prev_odo = log.odometry[0]
+    if raw_only:
+        tm = log.times_s[0] - 0.001 + off
+        out.append(f"ODOM {prev_odo[0]:.6f} {prev_odo[1]:.6f} {prev_odo[2]:.6f} 0 0 0 "
+                   f"{_t(tm, g_times)} sim {_t(tm, g_times)}")
     for i in range(log.times_s.shape[0]):
         t = log.times_s[i] + off
         if i > 0:  # ODOM lines half way and at the scan: corrected previous scan + raw since
@@ -203,7 +211,7 @@ def carmen_lines(log: SyntheticLog, *, unix_times: bool = False, g_times: bool =
             x, y, th = compose_poses(log.corrected[i], np.asarray(log.mount))[0]
             out.append(f"{log.kind} {log.ranges_m.shape[1]} {rng} {x:.6f} {y:.6f} {th:.6f} "
                        f"{od[0]:.6f} {od[1]:.6f} {od[2]:.6f} {stamp}")
-        prev_corr, prev_odo = log.corrected[i], log.odometry[i]
+        prev_corr, prev_odo = log.odometry[i] if raw_only else log.corrected[i], log.odometry[i]
     return out
 
 
