@@ -233,7 +233,7 @@ def carmen_log(records: CarmenRecords, override: GeometryOverride | None = None)
         base_raw = np.vstack([np.zeros((1, 3)), raw])[scan_idx]
         odom_raw = compose_poses(base_raw, relative_poses(base_corr, odom[:, :3]))
     else:  # no poses in the scan lines: the ODOM lines are the raw odometry
-        first = odom[0, :3]
+        first = odom[0, :3] if len(odom) else np.zeros(3)  # one scan and no ODOM line
         raw = np.asarray([first if p is None else p for p in last_odom_before_scan], dtype=float)
         corr, odom_raw = raw, odom[:, :3]
     scan_times = np.asarray([s.time_s for s in scans], dtype=float)
