@@ -30,7 +30,7 @@ from island_mapping.bag.reader import open_bag
 from island_mapping.bag.writer import BagWriter
 from island_mapping.cli.params import parse_assignments
 from island_mapping.core.graph import GraphStore, TopoGraph
-from island_mapping.logs.carmen import carmen_log, parse_carmen
+from island_mapping.logs.carmen import carmen_log, parse_carmen, pose_track
 from island_mapping.logs.relations import parse_relations
 from island_mapping.logs.uci_sonar import parse_sonar_ring
 from island_msgs_py.conversions import (
@@ -251,6 +251,16 @@ LOG_SEEDS = {
         "ODOM 0.1 0 0.01 0 0 0 1.1 pippo 1.1\n"
         "FLASER 180 " + " ".join(["2.6"] * 180) + " 0.2 0.2 0.0 0.2 0.2 0.0 2.0 pippo 2.0\n"
     ),
+    "carmen_rear_sonar": (  # a rear laser mounted off the centre, and a sonar ring
+        "PARAM robot_rearlaser_offset 0.2 host 0\n"
+        "PARAM robot_rearlaser_angular_offset 0.1 host 0\n"
+        "ODOM 0 0 0 0 0 0 0.5 pippo 0.5\n"
+        "RLASER 181 " + " ".join(["2.5"] * 181) + " 0.1 0.2 0.0 0.1 0.2 0.0 1.0 pippo 1.0\n"
+        "SONAR 0.436 4 1.0 2.0 5.0 0.5 0.2 0 0 0 0.2 1.57 -0.2 0 3.14 0 -0.2 -1.57 1.2 p 1.2\n"
+        "ODOM 0.1 0 0.01 0 0 0 1.5 pippo 1.5\n"
+        "RLASER 181 " + " ".join(["2.6"] * 181) + " 0.2 0.2 0.0 0.2 0.2 0.0 2.0 pippo 2.0\n"
+        "SONAR 0.436 4 1.1 2.1 5.0 0.6 0.2 0 0 0 0.2 1.57 -0.2 0 3.14 0 -0.2 -1.57 2.2 p 2.2\n"
+    ),
     "relations": ("976052905.167303 976052911.885496 -0.056990 -0.128430 0.000000 0.000000 "
                   "0.000000 -1.682210\n" * 2),
     "uci": ("0.438,0.498,3.625,3.645,5.000,2.918,5.000,2.351,2.332,2.643,1.698,1.687,1.698,"
@@ -261,9 +271,12 @@ LOG_SEEDS = {
 
 def _parse_log(kind: str, text: str) -> None:
     lines = text.splitlines(keepends=True)
-    if kind == "carmen":
+    if kind.startswith("carmen"):
         records = parse_carmen(lines, "fuzz.log")
-        carmen_log(records)
+        for scans in (None, "SONAR"):  # the log's first laser, and its sonar ring
+            chosen = records.with_scans(scans)
+            carmen_log(chosen)
+            pose_track(chosen)
     elif kind == "relations":
         parse_relations(lines, "fuzz.relations")
     else:

@@ -161,7 +161,7 @@ def test_cli_import_bad_input_exit_2(tmp_path: Path, capsys: pytest.CaptureFixtu
     empty = tmp_path / "empty.log"
     empty.write_text("NEFF 3\n")
     assert main(["bag", "import-carmen", str(empty), "--out", str(tmp_path / "o")]) == 2
-    assert "no FLASER, ROBOTLASER1 or RLASER line" in capsys.readouterr().err
+    assert "no FLASER, ROBOTLASER1, RLASER, SONAR line" in capsys.readouterr().err
     assert main(["bag", "import-carmen", str(tmp_path / "missing.log"),
                  "--out", str(tmp_path / "o2")]) == 2
     assert "missing.log" in capsys.readouterr().err

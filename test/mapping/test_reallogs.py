@@ -17,6 +17,7 @@ from island_msgs_py.geometry import from_frame
 from island_sim.core.world_loader import load_world
 
 ROOM = "house_expo_room_0000.json"
+ODOM = "ODOM 0 0 0 0 0 0 0.5 h 0.5"  # the raw odometry a log must have
 
 
 @pytest.fixture(scope="module")
@@ -88,7 +89,7 @@ def test_robotlaser1_carries_its_own_angles() -> None:
     ranges = " ".join(["2.0"] * n)
     line = (f"ROBOTLASER1 0 -1.0 2.0 0.5 30.0 0.01 0 {n} {ranges} 0 0.1 0 0 0 0 0 0 0 0 0 0 "
             "12.5 host 12.5")
-    recs = carmen.parse_carmen([line, line.replace("12.5", "13.5")], "rl1.log")
+    recs = carmen.parse_carmen([ODOM, line, line.replace("12.5", "13.5")], "rl1.log")
     log = carmen.carmen_log(recs)
     assert log.geometry is not None and log.geometry.source == "ROBOTLASER1 fields"
     assert log.geometry.angles() == pytest.approx([-1.0, -0.5, 0.0, 0.5, 1.0])
@@ -124,9 +125,10 @@ def test_bad_logs_are_clear_errors(lines: list[str], error: type[Exception], mat
 
 
 def test_unknown_lines_and_small_steps_back_are_counted() -> None:
-    lines = ["SONAR 3 1 2 3", _flaser(1.0), "FOO bar", _flaser(2.0), _flaser(1.5), _flaser(3.0)]
+    lines = ["SONARX 3 1 2 3", ODOM, _flaser(1.0), "FOO bar", _flaser(2.0), _flaser(1.5),
+             _flaser(3.0)]
     log = carmen.carmen_log(carmen.parse_carmen(lines, "jitter.log"))
-    assert log.skipped == {"SONAR": 1, "FOO": 1}
+    assert log.skipped == {"SONARX": 1, "FOO": 1}
     assert log.times is not None and log.times.backwards == 1
     assert log.times.max_backward_s == pytest.approx(0.5)
 

@@ -6,9 +6,13 @@ a malformed log is a CarmenFormatError (a BagError) naming the file and line.
 
 `import_carmen(log, out_dir, beams=None)` writes sensor_msgs/LaserScan on /scan (frame
 base_laser; angle_min and angle_increment of the geometry read from the log, `logs.geometry`,
-or given as a `GeometryOverride`), the raw odometry as nav_msgs/Odometry on /odom
+or given as a `GeometryOverride`; a sonar ring of evenly spaced transducers facing outwards as
+one scan with ranges from the robot's centre, like the simulator's /sonar/scan; a laser mounted
+off the robot's centre, or another ring, is refused: a LaserScan without TF cannot say so), the
+raw odometry as nav_msgs/Odometry on /odom
 (at every ODOM line, with a covariance grown by a simple drift model), the GMapping pose as
-nav_msgs/Odometry on /gmapping_pose (reference only, frame map) and rosgraph_msgs/Clock on
+nav_msgs/Odometry on /gmapping_pose (reference only, frame map; not for a log without corrected
+poses) and rosgraph_msgs/Clock on
 /clock. Times are the log's own timestamps (seconds since the log start) as sim time; the bag's
 log times are made non-decreasing in file order (scan header stamps keep the logged times).
 A sonar-like mode (`beams=16|24`) keeps that many evenly spaced beams of each scan.
@@ -54,12 +58,13 @@ SONAR_BEAM_CHOICES = (16, 24)
 """Beam counts of the sonar-like mode (a 16-sonar Nomad ring, a 24-sonar SCITOS ring)."""
 
 
-def read_carmen(path: str | os.PathLike[str],
-                override: GeometryOverride | None = None) -> CarmenLog:
+def read_carmen(path: str | os.PathLike[str], override: GeometryOverride | None = None,
+                scan_lines: str | None = None) -> CarmenLog:
     """The scans and raw odometry of a CARMEN log (logs.carmen), bad input (a line, the scan
     geometry, the times) as CarmenFormatError."""
     try:
-        return logs_carmen.carmen_log(logs_carmen.read_carmen_records(path), override)
+        records = logs_carmen.read_carmen_records(path).with_scans(scan_lines)
+        return logs_carmen.carmen_log(records, override)
     except LogFormatError as exc:
         raise CarmenFormatError(str(exc)) from None
 
@@ -180,14 +185,47 @@ def _check_times(log_path: str | os.PathLike[str], what: str, times_s: Any) -> N
                        f"[0, {MAX_LOG_TIME_S}] s, the range of a ROS stamp (the limit)")
 
 
+# How far a sonar ring's transducers may be from evenly spaced and radial to be a LaserScan [rad].
+_RING_TOL_RAD = 1e-3
+
+
+def _scan_fan(log: CarmenLog, log_path: str | os.PathLike[str]
+              ) -> tuple[FloatArray, float, float]:
+    """(ranges [m] from the LaserScan's origin (S, B), angle_min [rad], angle_increment [rad]):
+    a laser's own; a sonar ring's from the robot's centre (range + radius, as the simulator's
+    /sonar/scan), when its transducers are evenly spaced and face away from the centre. A
+    LaserScan has no room for a laser's mount or an irregular ring: BagError naming the log."""
+    geo = log.geometry
+    assert geo is not None
+    if any(log.mount):
+        raise BagError(f"{log_path}: the laser sits at {log.mount} (x [m], y [m], theta [rad]) "
+                       "on the robot, which a LaserScan without TF cannot carry: use "
+                       "`islands eval-relations` on the log")
+    if geo.beam_poses is None:
+        return log.ranges_m, geo.angle_min_rad, geo.increment_rad
+    pose = np.asarray(geo.beam_poses, dtype=np.float64)
+    radius = np.hypot(pose[:, 0], pose[:, 1])
+    steps = wrap_angles(np.diff(pose[:, 2]))
+    radial = np.abs(wrap_angles(np.arctan2(pose[:, 1], pose[:, 0]) - pose[:, 2]))
+    if not (np.ptp(steps) <= _RING_TOL_RAD and np.ptp(radius) <= 1e-3
+            and bool(np.all((radial <= _RING_TOL_RAD) | (radius < 1e-6)))):
+        raise BagError(f"{log_path}: its {geo.n_beams} sonar transducers are not an evenly "
+                       "spaced ring facing outwards, which is all a LaserScan can carry: use "
+                       "`islands eval-relations` on the log")
+    return log.ranges_m + float(radius.mean()), float(pose[0, 2]), float(steps.mean())
+
+
 def import_carmen(
     log_path: str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
     beams: int | None = None,
     config: CarmenImportConfig | None = None,
     override: GeometryOverride | None = None,
+    scan_lines: str | None = None,
 ) -> ImportReport:
-    """Write a CARMEN log as a rosbag2 MCAP directory (see module docstring)."""
+    """Write a CARMEN log as a rosbag2 MCAP directory (see module docstring); `scan_lines`
+    chooses the sensor whose lines are the scans (default: the log's first laser, else its
+    SONAR lines)."""
     from rosgraph_msgs.msg import Clock
 
     from island_mapping.bag.writer import BagWriter
@@ -195,15 +233,16 @@ def import_carmen(
     cfg = config or CarmenImportConfig()
     if beams is not None and beams not in SONAR_BEAM_CHOICES:
         raise BagError(f"--beams must be one of {SONAR_BEAM_CHOICES}, got {beams}")
-    log = read_carmen(log_path, override)
+    log = read_carmen(log_path, override, scan_lines)
     assert log.geometry is not None
     _check_times(log_path, "scan", log.scan_log_times_s)
     _check_times(log_path, "ODOM", log.odom_times_s)
-    n_in = log.ranges_m.shape[1]
+    ranges, angle_min, increment = _scan_fan(log, log_path)
+    n_in = ranges.shape[1]
     idx = sonar_like_indices(n_in, beams) if beams else np.arange(n_in)
     step = (n_in / beams) if beams else 1.0
-    angle_min = log.geometry.angle_min_rad + float(idx[0]) * log.geometry.increment_rad
-    increment = step * log.geometry.increment_rad
+    angle_min += float(idx[0]) * increment
+    increment *= step
     var_xy, var_th = _drift_variances(log.odom_raw, cfg)
     # Events in file order (ODOM lines before scan i carry odom_scan_index i), log times
     # non-decreasing; scan header stamps keep the logged times.
@@ -224,11 +263,12 @@ def import_carmen(
             if kind == 1:
                 stamp = _ns(log.times_s[k])
                 writer.write(cfg.scan_topic, _laser_scan(stamp, cfg.laser_frame,
-                                                         log.ranges_m[k, idx], angle_min,
+                                                         ranges[k, idx], angle_min,
                                                          increment), log_time_ns=t_ns)
-                writer.write(cfg.reference_topic, _odometry(stamp, cfg.map_frame,
-                                                            cfg.base_frame, log.corrected[k]),
-                             log_time_ns=t_ns)
+                if log.has_corrected:
+                    writer.write(cfg.reference_topic,
+                                 _odometry(stamp, cfg.map_frame, cfg.base_frame,
+                                           log.corrected[k]), log_time_ns=t_ns)
             else:
                 odom = _odometry(t_ns, cfg.odom_frame, cfg.base_frame, log.odom_raw[k])
                 cov = [0.0] * 36

@@ -60,14 +60,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("broken", help="the damaged .mcap file (or its directory)")
     p.add_argument("--out", default=None, help="output bag directory (default: <name>_recovered)")
 
-    p = sub.add_parser("import-carmen", help="CARMEN FLASER/ODOM log -> rosbag2 MCAP")
+    p = sub.add_parser("import-carmen", help="CARMEN log (a laser's or sonar ring's lines and "
+                       "ODOM) -> rosbag2 MCAP")
     p.add_argument("log", help="CARMEN log file")
     p.add_argument("--out", required=True, help="output bag directory (must not exist)")
     p.add_argument("--beams", type=int, default=None, choices=(16, 24),
                    help="sonar-like mode: keep this many evenly spaced beams")
-    from island_mapping.cli.eval_relations import add_geometry_arguments
+    from island_mapping.cli.eval_relations import add_geometry_arguments, add_scan_lines_argument
 
     add_geometry_arguments(p)
+    add_scan_lines_argument(p)
 
 
 def _fmt_time(ns: int) -> str:
@@ -198,7 +200,8 @@ def _import_carmen(args: argparse.Namespace) -> int:
     from island_mapping.bag.carmen import import_carmen
     from island_mapping.cli.eval_relations import geometry_override
 
-    rep = import_carmen(args.log, args.out, beams=args.beams, override=geometry_override(args))
+    rep = import_carmen(args.log, args.out, beams=args.beams, override=geometry_override(args),
+                        scan_lines=args.scan_lines)
     print(f"wrote {rep.scans} scans ({rep.beams} beams) and {rep.odometry} odometry messages "
           f"to {rep.out_dir}")
     return 0

@@ -3,18 +3,19 @@ reference trajectory.
 
   islands eval-relations --log LOG [--relations FILE] [--reference FILE] --out DIR
                          [--beams 180|24|16] [--localize-beams 24|16] [--place-recognition]
-                         [--no-loop-closure]
+                         [--no-loop-closure] [--scan-lines FLASER|ROBOTLASER1|RLASER|SONAR]
                          [--fov-deg D --angle-min-deg A] [--time-offset-s S]
                          [--seed N] [--bridge-s S] [--max-scans N]
 
-The scan geometry is read from the log (PARAM lines, ROBOTLASER1 fields, the FLASER format's
-standard beam counts); what the log does not say is an error asking for --fov-deg (and
---angle-min-deg). The relations' time offset is found from the log unless --time-offset-s
-gives it. Writes DIR/metrics.json (island_mapping.logs.report: relations covered inside
-islands, strict and bridged, with the reference trajectory on the same relations; agreement
-with the reference inside islands; islands per place) and DIR/islands.png (each island's line
-model in its own frame, like the paper's Fig. 5b, titled with the log's name), and prints the
-headline figures. The pipeline is deterministic; --seed is recorded only.
+The scan geometry is read from the log (PARAM lines, ROBOTLASER1 fields, SONAR transducer poses,
+the FLASER format's standard beam counts); what the log does not say is an error asking for
+--fov-deg (and --angle-min-deg). A sonar ring is built with sonar settings. The relations'
+time offset is found from the log unless --time-offset-s gives it. Writes DIR/metrics.json
+(island_mapping.logs.report: relations covered inside islands, strict and bridged, with the
+reference trajectory on the same relations; agreement with the reference inside islands;
+islands per place) and DIR/islands.png (each island's line model in its own frame, like the
+paper's Fig. 5b, titled with the log's name, the title also in the PNG's metadata), and prints
+the headline figures. The pipeline is deterministic; --seed is recorded only.
 """
 
 from __future__ import annotations
@@ -56,6 +57,18 @@ def add_geometry_arguments(parser: argparse.ArgumentParser) -> None:
                              "axis [deg] (default: the scan is centred)")
 
 
+SCAN_LINES = ("FLASER", "ROBOTLASER1", "RLASER", "SONAR")
+"""The CARMEN line types a log's scans may be (logs.carmen_lines.SCAN_KINDS)."""
+
+
+def add_scan_lines_argument(parser: argparse.ArgumentParser) -> None:
+    """--scan-lines: which sensor's lines of a CARMEN log are the scans."""
+    parser.add_argument("--scan-lines", default=None, choices=SCAN_LINES,
+                        help="the CARMEN lines that are the scans (default: FLASER, else "
+                             "ROBOTLASER1, else RLASER, else SONAR: the first the log has); "
+                             "SONAR builds islands from a sonar ring beside a laser")
+
+
 def add_loop_closure_argument(parser: Any) -> None:
     """--no-loop-closure on `parser` (a parser or an argument group): the passive mode without
     live exploration's loop closure."""
@@ -77,6 +90,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="relation time = log time + this [s] (default: found from the log)")
     parser.add_argument("--out", required=True, help="output directory")
     add_geometry_arguments(parser)
+    add_scan_lines_argument(parser)
     parser.add_argument("--beams", type=int, default=180, choices=offline.SUPPORTED_BEAMS,
                         help="180 = the laser; 24 or 16 = sonar-like mode (beams kept per scan)")
     parser.add_argument("--localize-beams", type=int, default=0,
@@ -153,7 +167,7 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
         raise CliError(f"--max-scans: need at least 2 scans, got {args.max_scans}")
     score = scoring(args)
     try:
-        log = from_carmen(args.log, geometry_override(args))
+        log = from_carmen(args.log, geometry_override(args), args.scan_lines)
         metrics, run = evaluate_log(log, offline_config(args), score, args.max_scans, progress)
     except (LogFormatError, RelationsError, offline.OfflineError) as exc:
         raise CliError(str(exc)) from None
@@ -172,16 +186,29 @@ def write_outputs(out: Path, metrics: dict[str, Any], args: argparse.Namespace) 
     island_run: IslandRun = metrics.pop("_run")
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
-    mode = "laser" if args.beams == offline.LASER_BEAMS else f"sonar-like, {args.beams} beams"
-    if args.localize_beams and args.localize_beams != args.beams:
-        mode += f"; scans localized from {args.localize_beams} beams"
     plot_islands(island_run.islands, out / "islands.png",
-                 f"{len(island_run.islands)} islands on {metrics['log']} ({mode})")
+                 f"{len(island_run.islands)} islands on {metrics['log']} ({metrics['mode']})")
     for line in headline(metrics):
         print(line)
-    print(json.dumps({k: metrics.get(k) for k in (
-        "covered_relations", "mean_trans_err_m", "median_trans_err_m", "mean_rot_err_deg",
-        "island_count")}))
+    print(json.dumps(summary_line(metrics)))
+
+
+def summary_line(metrics: dict[str, Any]) -> dict[str, Any]:
+    """The last console line, one JSON object: the headline (bridged) figures first, then the
+    strict ones, islands and islands per place (null where not computed)."""
+    bridged = metrics.get("bridged", {})
+    places = metrics.get("places", {})
+    return {
+        "log": metrics.get("log"), "island_count": metrics.get("island_count"),
+        "bridged_covered_relations": bridged.get("covered_relations"),
+        "bridged_mean_trans_err_m": bridged.get("mean_trans_err_m"),
+        "bridged_mean_rot_err_deg": bridged.get("mean_rot_err_deg"),
+        "reference_same_bridged_mean_trans_err_m":
+            bridged.get("gmapping_same_relations", {}).get("mean_trans_err_m"),
+        **{k: metrics.get(k) for k in ("covered_relations", "mean_trans_err_m",
+                                       "median_trans_err_m", "mean_rot_err_deg")},
+        "islands_per_place": places.get("islands_per_place"),
+    }
 
 
 def run(args: argparse.Namespace) -> int:

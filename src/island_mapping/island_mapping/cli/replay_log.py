@@ -2,14 +2,16 @@
 built by the builder's passive mode, with the outputs of `islands eval-relations`.
 
   islands replay BAG --passive --out DIR [--scan-topic T] [--odom-topic T]
-                 [--relations FILE] [--reference FILE] [--time-offset-s S]
+                 [--reference-topic T] [--relations FILE] [--reference FILE]
+                 [--time-offset-s S]
                  [--beams 180|24|16] [--place-recognition] [--no-loop-closure]
                  [--fov-deg D --angle-min-deg A]
 
 BAG is a rosbag2 directory or .mcap (a recorded real run, `islands bag import-carmen`'s output).
-The scans' geometry is the LaserScan's own; the reference trajectory is --reference, else the
-recording's /gmapping_pose if it has one. Writes DIR/metrics.json and DIR/islands.png and prints
-the headline figures (island_mapping.logs.report).
+The scans' geometry is the LaserScan's own (beams >= 5 deg apart: a sonar ring, built with
+sonar settings); the reference trajectory is --reference, else --reference-topic, else the
+recording's /gmapping_pose or /ground_truth if it has one. Writes DIR/metrics.json and
+DIR/islands.png and prints the headline figures (island_mapping.logs.report).
 """
 
 from __future__ import annotations
@@ -28,6 +30,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "builder's passive mode (not a replay of a recorded explore run)")
     g.add_argument("--scan-topic", default=None, help="LaserScan topic (default: the only one)")
     g.add_argument("--odom-topic", default=None, help="Odometry topic (default: /odom)")
+    g.add_argument("--reference-topic", default=None,
+                   help="Odometry topic of a reference trajectory, taken at each scan by stamp "
+                        "(default: /gmapping_pose, else /ground_truth, if recorded)")
     g.add_argument("--relations", default=None, help="Kuemmerle relations file")
     g.add_argument("--time-offset-s", type=float, default=None,
                    help="relation time = scan time + this [s] (default: found)")
@@ -55,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         log, counts = read_scan_log(args.bag, scan_topic=args.scan_topic,
                                     odom_topic=args.odom_topic,
+                                    reference_topic=args.reference_topic,
                                     override=ev.geometry_override(args))
         metrics, run_ = evaluate_log(log, ev.offline_config(args), score, None, ev.progress)
     except (LogFormatError, RelationsError, ev.offline.OfflineError) as exc:

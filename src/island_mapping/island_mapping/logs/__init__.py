@@ -2,11 +2,13 @@
 
 Public API, by module (import the submodule; this package imports nothing):
 
-- `carmen`: the one CARMEN log parser (`parse_carmen`, `read_carmen_records` -> `CarmenRecords`;
-  the views `carmen_log` -> `CarmenLog` and `pose_track` -> core.relations.PoseTrack; FLASER
-  FLASER format geometry `flaser_angles`, `sonar_like_indices`; `CarmenFormatError`);
-- `geometry`: scan geometry from the data (`ScanGeometry`, `GeometryOverride`,
-  `carmen_geometry`, `laserscan_geometry`, `ScanGeometryError`);
+- `carmen_lines`: the one CARMEN line parser (`parse_carmen`, `read_carmen_records` ->
+  `CarmenRecords`: FLASER, RLASER, ROBOTLASER1, SONAR, ODOM, PARAM; `CarmenFormatError`);
+- `carmen`: its views (`carmen_log` -> `CarmenLog` and `pose_track` ->
+  core.relations.PoseTrack; the FLASER format's geometry `flaser_angles`,
+  `sonar_like_indices`), re-exporting the parser's names;
+- `geometry`: scan geometry from the data (`ScanGeometry`, `SensorKind`, `GeometryOverride`,
+  `carmen_geometry`, `carmen_mount`, `laserscan_geometry`, `ScanGeometryError`);
 - `times`: scan time checks (`check_scan_times`, `TimeReport`, `LogTimeError`);
 - `relations`: Kuemmerle et al.'s relation files (`parse_relations`, `read_relations`);
 - `reference`: reference trajectories (`read_reference`, `inside_islands`, `places`);

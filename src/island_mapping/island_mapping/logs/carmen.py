@@ -1,23 +1,25 @@
-"""CARMEN log files: the one parser every tool uses (pure: numpy only).
+"""CARMEN log files: the views every tool reads of the one parser's records (pure: numpy only).
 
-A CARMEN log is text with one record per line, its first word the record's type. `parse_carmen`
-turns the lines into `CarmenRecords`: a typed record for every line of a type it knows (the
-parsers in `LINE_PARSERS`: FLASER, RLASER, ROBOTLASER1, ODOM) in file order, the `PARAM`
-lines (name -> value: the scan geometry, `logs.geometry`), and the count of the other lines by
-type (NEFF, ...). A malformed line of a known type is a `CarmenFormatError` naming the source
-and the line number. The scans of a log are the lines of one laser (`scan_kind`: FLASER if
-any, else ROBOTLASER1, else RLASER); the other lasers' lines are counted, not read.
+The lines are parsed by `logs.carmen_lines` (`parse_carmen`, `read_carmen_records` ->
+`CarmenRecords`, re-exported here). The scans of a log are the lines of one range sensor
+(`CarmenRecords.scan_kind`: FLASER if any, else ROBOTLASER1, else RLASER, else SONAR, or the
+user's choice); where its beams point and where it sits on the robot are read from the data
+(`logs.geometry`: the lines' own fields, PARAM lines, the format), never assumed.
 
 Two views of a GMapping-corrected log (../shared/data/README.md) are assembled from the records:
 
 - `carmen_log` -> `CarmenLog`: per scan the logged time, the ranges, the GMapping-corrected pose
-  of the FLASER line and the *raw* odometry: every ODOM line is "the corrected pose of the
+  of the robot at the scan and the *raw* odometry: every ODOM line is "the corrected pose of the
   previous scan plus the raw odometry accumulated since then", so the raw increment of scan i
   is relative(corrected[i-1], last ODOM before scan i) (before the first scan the previous
   corrected pose is the origin), and the raw poses are these increments composed from the
   origin; every ODOM line as raw odometry too (what the MCAP importer writes, what the offline
-  island builder reads);
-- `pose_track` -> `PoseTrack`: the GMapping pose and the raw odometry at every FLASER and ODOM
+  island builder reads). A FLASER/RLASER line's pose is the laser's (CARMEN's definition): the
+  robot's is that composed with the inverse of the laser's mount (`logs.geometry.carmen_mount`,
+  0 when the log has no offset PARAM lines, as the Intel log). SONAR lines carry no pose: the
+  raw odometry at a sonar scan is the last ODOM line's pose, and the log has no corrected poses
+  (`has_corrected`). A log without ODOM lines is refused: its raw odometry is not in it;
+- `pose_track` -> `PoseTrack`: the GMapping pose and the raw odometry at every scan and ODOM
   line after the first scan, in file order (the GMapping trajectory the relations are scored
   against, and the raw odometry that bridges a relation time to the nearest scan).
 
@@ -25,12 +27,9 @@ GMapping writes each scan's corrected pose again as an ODOM line right after the
 (its timestamp is 0 or garbage): such an echo is flagged (`OdomRecord.echo`) and is odometry in
 neither view. Times are the readings' (IPC) timestamps in seconds since the log's start.
 """
-
 from __future__ import annotations
 
 import math
-import os
-from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -39,233 +38,46 @@ from island_msgs_py.geometry import compose_poses, relative_poses
 from numpy.typing import NDArray
 
 from island_mapping.core.relations import PoseTrack
-from island_mapping.logs.errors import LogFormatError
-from island_mapping.logs.geometry import GeometryOverride, ScanGeometry, carmen_geometry
+from island_mapping.logs.carmen_lines import (
+    LASER_KINDS,
+    LINE_PARSERS,
+    SCAN_KINDS,
+    CarmenFormatError,
+    CarmenRecord,
+    CarmenRecords,
+    LaserRecord,
+    OdomRecord,
+    Pose,
+    parse_carmen,
+    read_carmen_records,
+)
+from island_mapping.logs.geometry import (
+    GeometryOverride,
+    ScanGeometry,
+    ScanGeometryError,
+    SensorKind,
+    carmen_geometry,
+    carmen_mount,
+)
 from island_mapping.logs.times import TimeReport, check_scan_times
 
+__all__ = [
+    "LASER_KINDS", "LINE_PARSERS", "SCAN_KINDS", "CarmenFormatError", "CarmenLog",
+    "CarmenRecord", "CarmenRecords", "LaserRecord", "OdomRecord", "Pose", "carmen_log",
+    "flaser_angles", "parse_carmen", "pose_track", "read_carmen_records", "scan_geometry",
+    "sonar_like_indices",
+]
+
 FloatArray = NDArray[np.float64]
-Pose = tuple[float, float, float]
-"""(x [m], y [m], theta [rad])."""
+NO_ECHO_MIN_FRACTION = 0.01
+"""A SONAR log's largest reading is its no-echo value when at least this fraction of all its
+readings equal it (a sonar reports its maximum when nothing echoes) [-]."""
 
 FLASER_ANGLE_MIN_RAD = -math.pi / 2
 """A FLASER scan without PARAM lines: the first beam to the robot's right (-90 deg), counter-
 clockwise (`logs.geometry`)..."""
 FLASER_ANGLE_INCREMENT_RAD = math.pi / 180
 """...at 1 deg steps for 180 beams (the Intel log: the last at +89 deg)."""
-
-_FLASER_TAIL = 9  # x y theta odom_x odom_y odom_theta ipc_timestamp host logger_timestamp
-_ODOM_FIELDS = 10  # ODOM x y theta tv rv accel ipc_timestamp host logger_timestamp
-
-
-class CarmenFormatError(LogFormatError):
-    """A CARMEN log could not be read or a line could not be parsed (the message names the file
-    and the line number)."""
-
-
-@dataclass(frozen=True)
-class LaserRecord:
-    """A FLASER, RLASER or ROBOTLASER1 line: ranges [m], the pose the log gives the scan
-    (GMapping-corrected in a corrected log) and the odometry pose fields; a ROBOTLASER1 line
-    also its own geometry and the laser's pose on the robot (x [m], y [m], theta [rad])."""
-
-    lineno: int
-    ranges_m: tuple[float, ...]
-    pose: Pose
-    odom_pose: Pose
-    time_s: float  # the reading's (IPC) timestamp [s]
-    host: str
-    logger_time_s: float  # when the logger wrote it [s]
-    kind: str = "FLASER"
-    geometry: ScanGeometry | None = None
-    mount: Pose = (0.0, 0.0, 0.0)
-
-
-@dataclass(frozen=True)
-class OdomRecord:
-    """An ODOM line: pose, translational [m/s] and rotational [rad/s] velocity, acceleration;
-    echo: GMapping's repeat of the scan just logged (right after its FLASER line, same pose)."""
-
-    lineno: int
-    pose: Pose
-    tv_mps: float
-    rv_radps: float
-    accel_mps2: float
-    time_s: float
-    host: str
-    logger_time_s: float
-    echo: bool = False
-
-
-CarmenRecord = LaserRecord | OdomRecord
-
-
-@dataclass(frozen=True)
-class CarmenRecords:
-    """The records of a log in file order, and the lines skipped (unknown types) by type."""
-
-    source: str
-    records: tuple[CarmenRecord, ...]
-    skipped: dict[str, int] = field(default_factory=dict)
-    params: dict[str, str] = field(default_factory=dict)
-
-    @property
-    def scan_kind(self) -> str:
-        """The laser whose lines are the scans: FLASER if any, else ROBOTLASER1, else RLASER."""
-        kinds = {r.kind for r in self.records if isinstance(r, LaserRecord)}
-        return next((k for k in LASER_KINDS if k in kinds), "FLASER")
-
-    def is_scan(self, rec: CarmenRecord) -> bool:
-        return isinstance(rec, LaserRecord) and rec.kind == self.scan_kind
-
-    @property
-    def scans(self) -> list[LaserRecord]:
-        kind = self.scan_kind
-        return [r for r in self.records if isinstance(r, LaserRecord) and r.kind == kind]
-
-    @property
-    def other_laser_lines(self) -> int:
-        """Lines of the lasers that are not the scans (e.g. RLASER beside FLASER)."""
-        return sum(1 for r in self.records if isinstance(r, LaserRecord)) - len(self.scans)
-
-
-def _floats(tokens: list[str], where: str, what: str) -> list[float]:
-    try:
-        values = [float(t) for t in tokens]
-    except ValueError as exc:
-        raise CarmenFormatError(f"{where}: {what}: {exc}") from None
-    if not all(math.isfinite(v) for v in values):
-        raise CarmenFormatError(f"{where}: {what}: NaN or infinite value")
-    return values
-
-
-def _count(tok: list[str], i: int, where: str, what: str) -> int:
-    if len(tok) <= i:
-        raise CarmenFormatError(f"{where}: {tok[0]} line without {what}")
-    try:
-        n = int(tok[i])
-    except ValueError:
-        raise CarmenFormatError(f"{where}: {tok[0]} {what} {tok[i]!r} is not an integer") from None
-    if n < 0:
-        raise CarmenFormatError(f"{where}: {tok[0]} {what} {n} is negative")
-    return n
-
-
-def _ranges(vals: list[float], where: str, kind: str) -> tuple[float, ...]:
-    if vals and min(vals) < 0:
-        raise CarmenFormatError(f"{where}: {kind} has a negative range")
-    return tuple(vals)
-
-
-def _flaser(tok: list[str], lineno: int, where: str) -> LaserRecord:
-    """FLASER or RLASER: n ranges, pose, odometry pose, time, host, logger time."""
-    kind = tok[0]
-    n = _count(tok, 1, where, "beam count")
-    if n <= 0 or len(tok) != 2 + n + _FLASER_TAIL:
-        raise CarmenFormatError(
-            f"{where}: {kind} with {n} beams needs {2 + n + _FLASER_TAIL} fields, got {len(tok)}"
-        )
-    vals = _floats(tok[2 : 2 + n + 6], where, kind)
-    t = _floats([tok[2 + n + 6]], where, f"{kind} timestamp")[0]
-    logger_t = _floats([tok[2 + n + 8]], where, f"{kind} logger timestamp")[0]
-    return LaserRecord(lineno, _ranges(vals[:n], where, kind), (vals[n], vals[n + 1], vals[n + 2]),
-                       (vals[n + 3], vals[n + 4], vals[n + 5]), t, tok[2 + n + 7], logger_t,
-                       kind=kind)
-
-
-# ROBOTLASER1 laser_type start_angle fov angular_resolution max_range accuracy remission_mode
-#   n [ranges] n_remissions [remissions] laser_x laser_y laser_theta robot_x robot_y robot_theta
-#   tv rv forward_safety side_safety turn_axis timestamp host logger_timestamp
-_RL1_HEAD = 8
-_RL1_TAIL = 14
-
-
-def _robotlaser1(tok: list[str], lineno: int, where: str) -> LaserRecord:
-    """ROBOTLASER1: the scan carries its own start angle and resolution [rad]."""
-    n = _count(tok, _RL1_HEAD, where, "beam count")
-    nrem = _count(tok, _RL1_HEAD + 1 + n, where, "remission count")
-    need = _RL1_HEAD + 2 + n + nrem + _RL1_TAIL
-    if n <= 0 or len(tok) != need:
-        raise CarmenFormatError(f"{where}: ROBOTLASER1 with {n} beams and {nrem} remissions "
-                                f"needs {need} fields, got {len(tok)}")
-    head = _floats(tok[2:5], where, "ROBOTLASER1 angles")
-    rng = _floats(tok[_RL1_HEAD + 1 : _RL1_HEAD + 1 + n], where, "ROBOTLASER1 ranges")
-    k = _RL1_HEAD + 2 + n + nrem
-    tail = _floats(tok[k : k + 11], where, "ROBOTLASER1 poses")
-    t = _floats([tok[k + 11]], where, "ROBOTLASER1 timestamp")[0]
-    logger_t = _floats([tok[k + 13]], where, "ROBOTLASER1 logger timestamp")[0]
-    start, _fov, res = head
-    if res == 0.0:
-        raise CarmenFormatError(f"{where}: ROBOTLASER1 angular resolution is 0")
-    laser, robot = np.asarray(tail[0:3]), np.asarray(tail[3:6])
-    mount = relative_poses(robot, laser)[0]
-    return LaserRecord(lineno, _ranges(rng, where, "ROBOTLASER1"), (tail[3], tail[4], tail[5]),
-                       (tail[3], tail[4], tail[5]), t, tok[k + 12], logger_t, kind="ROBOTLASER1",
-                       geometry=ScanGeometry(n, start, res, "ROBOTLASER1 fields"),
-                       mount=(float(mount[0]), float(mount[1]), float(mount[2])))
-
-
-def _odom(tok: list[str], lineno: int, where: str) -> OdomRecord:
-    if len(tok) != _ODOM_FIELDS:
-        raise CarmenFormatError(f"{where}: ODOM needs {_ODOM_FIELDS} fields, got {len(tok)}")
-    v = _floats(tok[1:7], where, "ODOM")
-    t = _floats([tok[7]], where, "ODOM timestamp")[0]
-    logger_t = _floats([tok[9]], where, "ODOM logger timestamp")[0]
-    return OdomRecord(lineno, (v[0], v[1], v[2]), v[3], v[4], v[5], t, tok[8], logger_t)
-
-
-LINE_PARSERS: dict[str, Callable[[list[str], int, str], CarmenRecord]] = {
-    "FLASER": _flaser,
-    "RLASER": _flaser,
-    "ROBOTLASER1": _robotlaser1,
-    "ODOM": _odom,
-}
-LASER_KINDS = ("FLASER", "ROBOTLASER1", "RLASER")
-"""The laser line types, in the order a log's scans are chosen from."""
-"""Parsers of the line types read, by the line's first word: (tokens, line number, "file:line")
--> record."""
-
-
-def parse_carmen(lines: Iterable[str], source: str = "<log>") -> CarmenRecords:
-    """Parse a log's lines (see the module docstring); `source` names it in errors."""
-    records: list[CarmenRecord] = []
-    skipped: dict[str, int] = {}
-    params: dict[str, str] = {}
-    prev_kind = ""
-    last_scan: LaserRecord | None = None
-    for lineno, line in enumerate(lines, start=1):
-        tok = line.split()
-        if not tok or tok[0].startswith("#"):
-            continue
-        kind = tok[0]
-        if kind == "PARAM" and len(tok) >= 3:
-            params[tok[1]] = tok[2]
-            continue
-        parser = LINE_PARSERS.get(kind)
-        if parser is None:
-            skipped[kind] = skipped.get(kind, 0) + 1
-            prev_kind = kind
-            continue
-        rec = parser(tok, lineno, f"{source}:{lineno}")
-        if isinstance(rec, OdomRecord) and prev_kind in LASER_KINDS and last_scan is not None and (
-            rec.pose == last_scan.pose
-        ):
-            rec = OdomRecord(rec.lineno, rec.pose, rec.tv_mps, rec.rv_radps, rec.accel_mps2,
-                             rec.time_s, rec.host, rec.logger_time_s, echo=True)
-        if isinstance(rec, LaserRecord):
-            last_scan = rec
-        records.append(rec)
-        prev_kind = kind
-    return CarmenRecords(source, tuple(records), skipped, params)
-
-
-def read_carmen_records(path: str | os.PathLike[str]) -> CarmenRecords:
-    """Parse a log file (see `parse_carmen`)."""
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8", errors="strict")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CarmenFormatError(f"cannot read CARMEN log {p}: {exc}") from None
-    return parse_carmen(text.splitlines(), str(p))
 
 
 # ----- the scans and the raw odometry -----
@@ -283,7 +95,8 @@ class CarmenLog:
     ranges_m: FloatArray
     """(S, B) ranges [m] (values above the sensor's maximum mean no return)."""
     corrected: FloatArray
-    """(S, 3) GMapping-corrected poses of the FLASER lines (reference, not odometry)."""
+    """(S, 3) the robot's GMapping-corrected poses at the scans (reference, not odometry; the
+    raw odometry when `has_corrected` is False)."""
     raw_odometry: FloatArray
     """(S, 3) raw odometry poses at the scans, composed from the origin."""
     odom_times_s: FloatArray
@@ -295,11 +108,15 @@ class CarmenLog:
     geometry: ScanGeometry | None = None
     """Where the beams point (logs.geometry; read from the data, or given)."""
     mount: Pose = (0.0, 0.0, 0.0)
-    """The laser's pose on the robot (ROBOTLASER1; 0 for FLASER/RLASER) [m, m, rad]."""
+    """The sensor's pose on the robot (ROBOTLASER1's fields; PARAM offsets for FLASER/RLASER,
+    the rear laser turned by pi; 0 for SONAR, whose transducers have their own) [m, m, rad]."""
     times: TimeReport | None = None
     """The scan times' check (steps back counted)."""
     skipped: dict[str, int] = field(default_factory=dict)
-    """Lines not read, by type (other lasers' lines as e.g. RLASER)."""
+    """Lines not read, by type (other sensors' lines as e.g. RLASER), and SONAR readings at
+    the no-echo value (`no_echo_readings`)."""
+    has_corrected: bool = True
+    """Whether the scans carry corrected poses (SONAR lines do not)."""
 
     @property
     def ranges(self) -> FloatArray:
@@ -313,13 +130,13 @@ class CarmenLog:
 
 def scan_geometry(records: CarmenRecords,
                   override: GeometryOverride | None = None) -> ScanGeometry:
-    """The geometry of the log's scans (logs.geometry): given, the scans' own (ROBOTLASER1,
-    which must agree), or from the PARAM lines and the beam count; ScanGeometryError when it
-    cannot be known."""
+    """The geometry of the log's scans (logs.geometry): given, the scans' own (ROBOTLASER1 and
+    SONAR, which must agree from line to line), or from the PARAM lines and the beam count;
+    ScanGeometryError when it cannot be known."""
     scans = records.scans
     if not scans:
-        raise CarmenFormatError(
-            f"{records.source}: no FLASER, ROBOTLASER1 or RLASER line (not a CARMEN laser log?)")
+        raise CarmenFormatError(f"{records.source}: no {', '.join(SCAN_KINDS)} line (not a "
+                                "CARMEN log of a range sensor?)")
     n_beams = len(scans[0].ranges_m)
     for s in scans:
         if len(s.ranges_m) != n_beams:
@@ -327,17 +144,53 @@ def scan_geometry(records: CarmenRecords,
                 f"{records.source}:{s.lineno}: {s.kind} has {len(s.ranges_m)} beams, earlier "
                 f"scans had {n_beams} (mixed scan lengths)")
     first = scans[0].geometry
-    if first is None or (override is not None and override.given):
+    given = override is not None and override.given
+    if records.scan_kind == "SONAR" and given:
+        raise ScanGeometryError(f"{records.source}: --fov-deg/--angle-min-deg do not apply to "
+                                "SONAR lines (each gives its transducers' poses)")
+    if first is None or given:
         return carmen_geometry(records.scan_kind, n_beams, records.params, records.source,
                                override)
     for s in scans:
         g = s.geometry
         if g is None or not (math.isclose(g.angle_min_rad, first.angle_min_rad, abs_tol=1e-6)
                              and math.isclose(g.increment_rad, first.increment_rad,
-                                              abs_tol=1e-9)) or s.mount != scans[0].mount:
-            raise CarmenFormatError(f"{records.source}:{s.lineno}: {s.kind} geometry or laser "
+                                              abs_tol=1e-9)) or s.mount != scans[0].mount or (
+                g.beam_poses != first.beam_poses):
+            raise CarmenFormatError(f"{records.source}:{s.lineno}: {s.kind} geometry or sensor "
                                     "mount differs from the first scan's")
     return first
+
+
+def _mount(records: CarmenRecords) -> Pose:
+    """The scanning sensor's pose on the robot (see CarmenLog.mount)."""
+    kind = records.scan_kind
+    if kind in ("FLASER", "RLASER"):
+        return carmen_mount(kind, records.params, records.source)
+    return records.scans[0].mount if kind == "ROBOTLASER1" else (0.0, 0.0, 0.0)
+
+
+def _robot_poses(records: CarmenRecords, mount: Pose) -> FloatArray:
+    """(S, 3) the robot's pose at each scan as the lines give it: a FLASER/RLASER line's pose is
+    the laser's, so the robot's is it composed with the mount's inverse; ROBOTLASER1 gives the
+    robot's; SONAR none (NaN)."""
+    poses = np.asarray([s.pose for s in records.scans], dtype=np.float64).reshape(-1, 3)
+    if records.scan_kind in ("FLASER", "RLASER") and any(mount):
+        inv = relative_poses(np.asarray(mount, dtype=np.float64), np.zeros(3))
+        poses = compose_poses(poses, inv)
+    return poses
+
+
+def _no_echo(ranges_m: FloatArray) -> tuple[FloatArray, int]:
+    """A sonar ring's readings at its no-echo value (NO_ECHO_MIN_FRACTION) as inf, and how
+    many there were."""
+    if ranges_m.size == 0:
+        return ranges_m, 0
+    top = float(ranges_m.max())
+    hit = ranges_m == top
+    if np.sum(hit) < NO_ECHO_MIN_FRACTION * ranges_m.size:
+        return ranges_m, 0
+    return np.where(hit, np.inf, ranges_m), int(np.sum(hit))
 
 
 def carmen_log(records: CarmenRecords, override: GeometryOverride | None = None) -> CarmenLog:
@@ -358,37 +211,39 @@ def carmen_log(records: CarmenRecords, override: GeometryOverride | None = None)
                 skipped[rec.kind] = skipped.get(rec.kind, 0) + 1
                 continue
             last_odom_before_scan.append(last_odom)
-            last_odom = None
+            last_odom = None if records.scans_have_poses else last_odom
         elif not rec.echo:
             last_odom = rec.pose
             odom_lines.append((*rec.pose, rec.time_s))
             odom_scan.append(len(last_odom_before_scan))
-    corr = np.asarray([s.pose for s in scans], dtype=float)
-    raw = _raw_at_scans(corr, last_odom_before_scan)
-    # Every ODOM line as raw odometry: relative to the corrected pose of the scan before it.
+    if not odom_lines and len(scans) > 1:
+        raise CarmenFormatError(f"{records.source}: no ODOM lines: the robot's raw odometry is "
+                                f"not in the log, and islands cannot be built without it")
+    mount = _mount(records)
+    ranges = np.asarray([s.ranges_m for s in scans], dtype=float)
+    if geometry.sensor is SensorKind.SONAR_RING:
+        ranges, skipped["no_echo_readings"] = _no_echo(ranges)
     odom = np.asarray(odom_lines, dtype=float).reshape(-1, 4)
     scan_idx = np.asarray(odom_scan, dtype=np.int64)
-    base_corr = np.vstack([np.zeros((1, 3)), corr])[scan_idx]
-    base_raw = np.vstack([np.zeros((1, 3)), raw])[scan_idx]
-    odom_raw = odom
-    if len(odom):
+    if records.scans_have_poses:
+        corr = _robot_poses(records, mount)
+        raw = _raw_at_scans(corr, last_odom_before_scan)
+        # Every ODOM line as raw odometry: relative to the corrected pose of the scan before it.
+        base_corr = np.vstack([np.zeros((1, 3)), corr])[scan_idx]
+        base_raw = np.vstack([np.zeros((1, 3)), raw])[scan_idx]
         odom_raw = compose_poses(base_raw, relative_poses(base_corr, odom[:, :3]))
+    else:  # no poses in the scan lines: the ODOM lines are the raw odometry
+        first = odom[0, :3] if len(odom) else np.zeros(3)  # one scan and no ODOM line
+        raw = np.asarray([first if p is None else p for p in last_odom_before_scan], dtype=float)
+        corr, odom_raw = raw, odom[:, :3]
     scan_times = np.asarray([s.time_s for s in scans], dtype=float)
     odom_log_t, scan_log_t = _file_order_times(odom[:, 3].copy(), scan_idx, scan_times)
     return CarmenLog(
-        path=Path(records.source),
-        times_s=scan_times,
-        scan_log_times_s=scan_log_t,
-        ranges_m=np.asarray([s.ranges_m for s in scans], dtype=float),
-        corrected=corr,
-        raw_odometry=raw,
-        odom_times_s=odom_log_t,
-        odom_raw=np.asarray(odom_raw, dtype=float).reshape(-1, 3),
-        odom_scan_index=scan_idx,
-        geometry=geometry,
-        mount=scans[0].mount,
-        times=times,
-        skipped=skipped,
+        path=Path(records.source), times_s=scan_times, scan_log_times_s=scan_log_t,
+        ranges_m=ranges, corrected=corr, raw_odometry=raw, odom_times_s=odom_log_t,
+        odom_raw=np.asarray(odom_raw, dtype=float).reshape(-1, 3), odom_scan_index=scan_idx,
+        geometry=geometry, mount=mount, times=times, skipped=skipped,
+        has_corrected=records.scans_have_poses,
     )
 
 
@@ -438,43 +293,57 @@ def _file_order_times(
 
 
 def pose_track(records: CarmenRecords) -> PoseTrack:
-    """Poses at every FLASER line and every ODOM line after the first scan (echoes are not
-    odometry), in file order: the GMapping pose (corrected for scans; corrected + raw odometry
-    between), raw odometry (from the first scan's frame), the latest scan's index. The GMapping
-    baseline depends on every such line: a relation time takes the nearest line."""
+    """Poses at every scan line and every ODOM line after the first scan (echoes are not
+    odometry), in file order: the GMapping pose (the robot's corrected pose for scans,
+    corrected + raw odometry between), raw odometry (from the first scan's frame), the latest
+    scan's index. The GMapping baseline depends on every such line: a relation time takes the
+    nearest line. A log whose scans carry no pose (SONAR): both are the ODOM lines' poses."""
     times: list[float] = []
-    gm: list[Pose] = []
+    gm: list[FloatArray] = []
     raw: list[FloatArray] = []
     is_scan: list[bool] = []
     scan_idx: list[int] = []
     n_scans = 0
+    posed = records.scans_have_poses
+    robot = _robot_poses(records, _mount(records)) if records.scans else np.zeros((0, 3))
     last_corrected: FloatArray | None = None  # corrected pose of the latest scan
     last_raw_at_scan = np.zeros(3)  # raw odometry pose of the latest scan
+    if not posed:  # scans before any ODOM line: where the first ODOM line has the robot
+        last_raw_at_scan = next((np.asarray(r.pose, dtype=np.float64) for r in records.records
+                                 if isinstance(r, OdomRecord) and not r.echo), last_raw_at_scan)
     last_odom: FloatArray | None = None  # pose of the latest ODOM line since that scan
     for rec in records.records:
-        pose = np.asarray(rec.pose, dtype=np.float64)
         if isinstance(rec, LaserRecord) and not records.is_scan(rec):
-            continue  # another laser's line
+            continue  # another sensor's line
         if isinstance(rec, LaserRecord):
-            if last_corrected is not None and last_odom is not None:
-                inc = relative_poses(last_corrected, last_odom)
-                last_raw_at_scan = compose_poses(last_raw_at_scan, inc)[0]
-            last_corrected, last_odom = pose, None
+            if not posed:
+                last_raw_at_scan = last_odom if last_odom is not None else last_raw_at_scan
+                pose = last_raw_at_scan
+            else:
+                pose = robot[n_scans]
+                if last_corrected is not None and last_odom is not None:
+                    inc = relative_poses(last_corrected, last_odom)
+                    last_raw_at_scan = compose_poses(last_raw_at_scan, inc)[0]
+                last_odom = None
+            last_corrected = pose
             raw.append(last_raw_at_scan.copy())
             is_scan.append(True)
             scan_idx.append(n_scans)
             n_scans += 1
-        elif rec.echo or last_corrected is None:
+        elif rec.echo or (last_corrected is None and posed):
             continue  # the repeat right after a scan, or odometry before the first scan
         else:
-            last_odom = pose
-            raw.append(compose_poses(last_raw_at_scan, relative_poses(last_corrected, pose))[0])
+            last_odom = pose = np.asarray(rec.pose, dtype=np.float64)
+            if last_corrected is None:
+                continue  # odometry before the first (pose-less) scan: its raw pose only
+            raw.append(pose.copy() if not posed else
+                       compose_poses(last_raw_at_scan, relative_poses(last_corrected, pose))[0])
             is_scan.append(False)
             scan_idx.append(n_scans - 1)
         times.append(rec.time_s)
-        gm.append(rec.pose)
+        gm.append(pose)
     if n_scans == 0:
-        raise CarmenFormatError(f"{records.source}: no FLASER lines")
+        raise CarmenFormatError(f"{records.source}: no {', '.join(SCAN_KINDS)} lines")
     return PoseTrack(
         np.asarray(times, dtype=np.float64),
         np.asarray(gm, dtype=np.float64).reshape(-1, 3),

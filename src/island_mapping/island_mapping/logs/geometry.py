@@ -1,8 +1,10 @@
 """Scan geometry read from the data, never assumed (pure: numpy only).
 
 A `ScanGeometry` is where a scan's beams point: `n_beams` readings from `angle_min_rad`,
-`increment_rad` apart (counter-clockwise, robot frame), and where that came from (`source`).
-It is determined, in this order, by
+`increment_rad` apart (counter-clockwise, robot frame), and where that came from (`source`);
+for a sonar ring (`SensorKind.SONAR_RING`) each transducer may also have its own pose on the
+robot (`beam_poses`: a CARMEN `SONAR` line's offsets; ranges are then from the transducer).
+A laser's geometry is determined, in this order, by
 
 1. the user (`--fov-deg`, `--angle-min-deg`: `GeometryOverride`);
 2. the message itself (a `ROBOTLASER1` line's start angle and resolution; a ROS `LaserScan`'s
@@ -17,12 +19,19 @@ It is determined, in this order, by
 
 Anything else is a `ScanGeometryError` naming the log and what to pass; a geometry is never
 guessed (a wrong one turns walls into spirals while the metrics still look plausible).
+
+Which sensor a scan is, is read from the data too: a CARMEN `SONAR` line is a sonar ring; a ROS
+`LaserScan` whose beams are at least `RING_MIN_INCREMENT_DEG` apart is a ring of range sensors
+(one beam per transducer, as the simulator's /sonar/scan: ranges from the robot's centre), and
+islands are built from it with sonar settings (`logs.islands.for_sensor`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import StrEnum
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,6 +48,16 @@ STANDARD_RESOLUTIONS_DEG = (1.0, 0.5, 0.25)
 _REL_TOL = 1e-6  # relative tolerance when comparing a beam count with fov / resolution
 # How far a LaserScan's angle_max may differ from angle_min + (n - 1) * increment [increments].
 _ANGLE_MAX_TOL_STEPS = 0.5
+RING_MIN_INCREMENT_DEG = 5.0
+"""A LaserScan whose beams are at least this far apart is a ring of range sensors (sonar: a
+16-ring is 22.5 deg, a 24-ring 15 deg apart), not a laser (0.25-1 deg) [deg]."""
+
+
+class SensorKind(StrEnum):
+    """What produced a scan: a laser's fan of beams, or a ring of sonar transducers."""
+
+    LASER = "laser"
+    SONAR_RING = "sonar ring"
 
 
 class ScanGeometryError(LogFormatError):
@@ -48,26 +67,60 @@ class ScanGeometryError(LogFormatError):
 
 @dataclass(frozen=True)
 class ScanGeometry:
-    """Beam k points at angle_min_rad + k * increment_rad [rad] (robot frame, CCW)."""
+    """Beam k points at angle_min_rad + k * increment_rad [rad] (robot frame, CCW) from the
+    sensor's origin; with `beam_poses`, beam k starts at (x, y) [m] and points at theta [rad]
+    of its own pose on the robot (a sonar ring's transducers)."""
 
     n_beams: int
     angle_min_rad: float
     increment_rad: float
     source: str
+    sensor: SensorKind = SensorKind.LASER
+    beam_poses: tuple[tuple[float, float, float], ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.beam_poses is not None and len(self.beam_poses) != self.n_beams:
+            raise ScanGeometryError(f"{self.source}: {len(self.beam_poses)} beam poses for "
+                                    f"{self.n_beams} beams")
 
     def angles(self) -> FloatArray:
         """(n_beams,) beam angles [rad]."""
+        if self.beam_poses is not None:
+            return np.array([p[2] for p in self.beam_poses], dtype=np.float64)
         return self.angle_min_rad + np.arange(self.n_beams, dtype=np.float64) * self.increment_rad
+
+    def origins(self) -> FloatArray:
+        """(n_beams, 2) where each beam starts on the sensor [m] (0 but for a ring's
+        transducers)."""
+        if self.beam_poses is None:
+            return np.zeros((self.n_beams, 2))
+        return np.array([p[:2] for p in self.beam_poses], dtype=np.float64).reshape(-1, 2)
 
     @property
     def fov_deg(self) -> float:
         """Angle from the first to the last beam [deg]."""
         return math.degrees(self.increment_rad * (self.n_beams - 1))
 
-    def as_dict(self) -> dict[str, float | int | str]:
-        return {"beams": self.n_beams, "angle_min_deg": round(math.degrees(self.angle_min_rad), 6),
-                "increment_deg": round(math.degrees(self.increment_rad), 6),
-                "source": self.source}
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "beams": self.n_beams, "sensor": self.sensor.value,
+            "angle_min_deg": round(math.degrees(self.angle_min_rad), 6),
+            "increment_deg": round(math.degrees(self.increment_rad), 6), "source": self.source,
+            "description": self.describe()}
+        if self.beam_poses is not None:
+            out["transducers_m_m_deg"] = [[round(x, 4), round(y, 4), round(math.degrees(t), 3)]
+                                          for x, y, t in self.beam_poses]
+        return out
+
+    def describe(self) -> str:
+        """One line for the console: the sensor, its beams and where they were read from."""
+        if self.beam_poses is not None:
+            r = np.hypot(*self.origins().T)
+            return (f"{self.n_beams} {self.sensor.value} transducers {float(r.min()):.3f}-"
+                    f"{float(r.max()):.3f} m from the centre ({self.source})")
+        kind = "" if self.sensor is SensorKind.LASER else f" ({self.sensor.value})"
+        return (f"{self.n_beams} beams{kind} from {math.degrees(self.angle_min_rad):g} deg every "
+                f"{math.degrees(self.increment_rad):g} deg ({self.source})")
 
 
 @dataclass(frozen=True)
@@ -166,6 +219,22 @@ def carmen_geometry(kind: str, n_beams: int, params: dict[str, str], source: str
     return geo
 
 
+def carmen_mount(kind: str, params: dict[str, str], source: str) -> tuple[float, float, float]:
+    """Where a FLASER or RLASER laser sits on the robot (x [m], y [m], theta [rad]), from the
+    log's PARAM lines as CARMEN defines them: the front laser `robot_frontlaser_offset` ahead
+    of the centre (`_side_offset` to the left, `_angular_offset` [rad] turned); the rear laser faces
+    backwards, `robot_rearlaser_offset` behind the centre (CARMEN's localize places it at the
+    robot's pose + offset along theta + pi, turned by pi). 0 offsets when the log says nothing.
+    """
+    prefix = "robot_rearlaser_" if kind == "RLASER" else "robot_frontlaser_"
+    off = _param(params, prefix + "offset", source) or 0.0
+    side = _param(params, prefix + "side_offset", source) or 0.0
+    ang = _param(params, prefix + "angular_offset", source) or 0.0  # [rad], as CARMEN's poses
+    if kind != "RLASER":
+        return (off, side, ang)
+    return (-off, -side, math.atan2(math.sin(math.pi + ang), math.cos(math.pi + ang)))
+
+
 def laserscan_geometry(n_beams: int, angle_min_rad: float, angle_max_rad: float,
                        increment_rad: float, source: str,
                        override: GeometryOverride | None = None) -> ScanGeometry:
@@ -185,4 +254,6 @@ def laserscan_geometry(n_beams: int, angle_min_rad: float, angle_max_rad: float,
                     f"angle_increment {math.degrees(increment_rad):.4f} deg = "
                     f"{math.degrees(end):.3f} deg, but angle_max is "
                     f"{math.degrees(angle_max_rad):.3f} deg")
-    return ScanGeometry(n_beams, angle_min_rad, increment_rad, "LaserScan fields")
+    ring = abs(math.degrees(increment_rad)) >= RING_MIN_INCREMENT_DEG
+    return ScanGeometry(n_beams, angle_min_rad, increment_rad, "LaserScan fields",
+                        SensorKind.SONAR_RING if ring else SensorKind.LASER)

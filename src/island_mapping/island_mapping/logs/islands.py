@@ -35,6 +35,7 @@ from island_mapping.core.builder.passive import (
 from island_mapping.core.explore import ExplorerConfig, loop_closure_hooks
 from island_mapping.core.lines import LineFitConfig
 from island_mapping.logs.carmen import flaser_angles, sonar_like_indices
+from island_mapping.logs.geometry import ScanGeometry, SensorKind
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -108,6 +109,33 @@ def sonar_like_config(beams: int, base: OfflineConfig | None = None) -> OfflineC
     cfg = base if base is not None else OfflineConfig()
     if beams == LASER_BEAMS:
         return dataclasses.replace(cfg, beams=LASER_BEAMS)
+    return dataclasses.replace(_sonar_settings(cfg), beams=beams)
+
+
+def for_sensor(cfg: OfflineConfig, geometry: ScanGeometry) -> OfflineConfig:
+    """The configuration for the log's sensor: a sonar ring's readings (`SensorKind.SONAR_RING`,
+    read from the data: `logs.geometry`) are built with the sonar settings of the sonar-like
+    mode, every transducer kept; a laser's, or a sonar-like beam count chosen, as given."""
+    if geometry.sensor is SensorKind.SONAR_RING and cfg.beams == LASER_BEAMS:
+        return _sonar_settings(cfg)
+    return cfg
+
+
+def mode_text(cfg: OfflineConfig, geometry: ScanGeometry) -> str:
+    """How the scans were used, for the console and the figure's title."""
+    if geometry.sensor is SensorKind.SONAR_RING and cfg.beams == LASER_BEAMS:
+        mode = f"sonar ring, every transducer, sonar line fit to {cfg.max_range_m:g} m"
+    elif cfg.beams == LASER_BEAMS:
+        mode = "laser"
+    else:
+        mode = f"sonar-like, {cfg.beams} beams"
+    if cfg.localize_beams and cfg.localize_beams != cfg.beams:
+        mode += f"; scans localized from {cfg.localize_beams} beams"
+    return mode
+
+
+def _sonar_settings(cfg: OfflineConfig) -> OfflineConfig:
+    """A sonar's range (6.5 m), line fitting and window, the beams kept unchanged."""
     isl = cfg.islands
     islands = dataclasses.replace(
         replace_builder(isl, line_fit=LineFitConfig(),
@@ -118,39 +146,49 @@ def sonar_like_config(beams: int, base: OfflineConfig | None = None) -> OfflineC
         min_matched_fraction=min(isl.min_matched_fraction, 0.5),
         search_range_m=SONAR_LIKE_RANGE_M,
     )
-    return dataclasses.replace(cfg, beams=beams, max_range_m=SONAR_LIKE_RANGE_M, islands=islands)
+    return dataclasses.replace(cfg, max_range_m=SONAR_LIKE_RANGE_M, islands=islands)
 
 
-def scan_points(ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike,
-                max_range_m: float) -> FloatArray:
-    """(N, 2) points [m] in the robot frame; readings that are non-finite, <= 0 or beyond
-    max_range_m (no return: the Intel log reports 81.83 m) are dropped."""
+def scan_points(ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike, max_range_m: float,
+                origins_m: npt.ArrayLike | None = None) -> FloatArray:
+    """(N, 2) points [m] in the sensor frame, each beam from its origin (origins_m (B, 2) [m],
+    default the sensor's origin); readings that are non-finite, <= 0 or beyond max_range_m (no
+    return: the Intel log reports 81.83 m) are dropped."""
     r = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
     a = np.asarray(angles_rad, dtype=np.float64).reshape(-1)
     if r.shape != a.shape:
         raise OfflineError(f"scan: {r.size} ranges for {a.size} beam angles")
     ok = np.isfinite(r) & (r > 0.0) & (r <= max_range_m)
-    return np.stack([r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])], axis=1)
+    pts = np.stack([r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])], axis=1)
+    if origins_m is None:
+        return pts
+    o = np.asarray(origins_m, dtype=np.float64).reshape(-1, 2)
+    if o.shape[0] != r.size:
+        raise OfflineError(f"scan: {r.size} ranges for {o.shape[0]} beam origins")
+    return pts + o[ok]
 
 
 def beam_points(ranges_m: FloatArray, cfg: OfflineConfig, angles_rad: npt.ArrayLike | None = None,
-                mount: npt.ArrayLike | None = None
+                mount: npt.ArrayLike | None = None, origins_m: npt.ArrayLike | None = None
                 ) -> tuple[list[FloatArray], list[FloatArray]]:
     """Per scan of (S, B) ranges at `angles_rad` (B,) [rad] (default: the CARMEN FLASER
-    format's, `flaser_angles`, which refuses beam counts it cannot know): the points that build
-    island models (the kept beams) and the points localized in them (the `localize_beams`
-    subset, if set), in the robot frame (`mount`: the sensor's pose on the robot)."""
+    format's, `flaser_angles`, which refuses beam counts it cannot know) from `origins_m`
+    (B, 2) [m] (default the sensor's origin): the points that build island models (the kept
+    beams) and the points localized in them (the `localize_beams` subset, if set), in the
+    robot frame (`mount`: the sensor's pose on the robot)."""
     n_total = ranges_m.shape[1]
     angles = (flaser_angles(n_total) if angles_rad is None
               else np.asarray(angles_rad, dtype=np.float64).reshape(-1))
     if angles.shape != (n_total,):
         raise OfflineError(f"scan: {n_total} ranges per scan for {angles.size} beam angles")
     at = None if mount is None else np.asarray(mount, dtype=np.float64).reshape(3)
+    origins = (np.zeros((n_total, 2)) if origins_m is None
+               else np.asarray(origins_m, dtype=np.float64).reshape(-1, 2))
 
     def points(n_keep: int, max_range_m: float) -> list[FloatArray]:
         keep = (np.arange(n_total) if n_keep == LASER_BEAMS
                 else sonar_like_indices(n_total, min(n_keep, n_total)))
-        pts = [scan_points(r[keep], angles[keep], max_range_m) for r in ranges_m]
+        pts = [scan_points(r[keep], angles[keep], max_range_m, origins[keep]) for r in ranges_m]
         return pts if at is None or not np.any(at) else [from_frame(p, at) for p in pts]
 
     build = points(cfg.beams, cfg.max_range_m)
@@ -171,8 +209,10 @@ def build_islands_offline(
     progress: Callable[[int, int, int], None] | None = None,
     angles_rad: npt.ArrayLike | None = None,
     mount: npt.ArrayLike | None = None,
+    origins_m: npt.ArrayLike | None = None,
 ) -> IslandRun:
-    """Islands over a log's scans: ranges_m (S, B) [m] at `angles_rad` (`beam_points`),
+    """Islands over a log's scans: ranges_m (S, B) [m] at `angles_rad` from `origins_m`
+    (`beam_points`),
     raw_poses (S, 3) the raw odometry at each scan, times_s (S,) [s], fed scan by scan to the
     passive builder with the covariance the odometry error model propagates along the raw odometry.
     `progress(scan, scans, islands)` is called after every scan when given."""
@@ -186,7 +226,7 @@ def build_islands_offline(
         raise OfflineError(
             f"build_islands_offline: {rng.shape} ranges, {raw.shape} poses, {t.shape[0]} times"
         )
-    build, fix = beam_points(rng, cfg, angles_rad, mount)
+    build, fix = beam_points(rng, cfg, angles_rad, mount, origins_m)
     hooks = loop_closure_hooks(cfg.explorer) if cfg.loop_closure else None
     builder = PassiveBuilder(cfg.islands, localizer=localizer, fit=fitter, evaluate=evaluator,
                              hooks=hooks)

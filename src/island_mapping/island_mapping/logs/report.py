@@ -24,6 +24,7 @@ mode (`logs.islands.build_islands_offline`) and scores them:
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -45,6 +46,9 @@ REVISIT_S = 100.0
 """A relation joining poses farther apart in time than this is a revisit (after a loop) [s]."""
 REFERENCE_TOLERANCE_S = 0.05
 """A reference pose is taken for a scan when their times differ by at most this [s]."""
+NO_REFERENCE_TRACK = "raw odometry (the log has no corrected poses)"
+"""What the relations' "reference on the same" figures score when the log holds no reference
+poses at its scans (its `gmapping_*` entries are then raw odometry's)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,6 +65,7 @@ class RecordedLog:
     track_name: str = ""  # what the track's poses are (e.g. the log's GMapping-corrected poses)
     times: TimeReport | None = None
     skipped: dict[str, int] = field(default_factory=dict)
+    reference: refs.Reference | None = None  # recorded on the scans' clock (e.g. a topic)
 
     @property
     def n_scans(self) -> int:
@@ -118,6 +123,7 @@ def score_on_relations(log: RecordedLog, run: IslandRun, n: int, scoring: Scorin
         "gmapping_all_relations": strict.gmapping_all.as_dict(),
         "bridged": {"bridge_s": scoring.bridge_s, **_stats(bridged, "gmapping_same_relations")},
         "relations": len(used),
+        "relations_reference": log.track_name or NO_REFERENCE_TRACK,
         "relations_outside_log": int(np.sum(~inside)),
         "time_offset": offset.as_dict(),
         "revisit_relations_covered": int(np.sum(
@@ -129,19 +135,41 @@ def score_on_relations(log: RecordedLog, run: IslandRun, n: int, scoring: Scorin
 def reference_at_scans(log: RecordedLog, n: int, scoring: Scoring
                        ) -> tuple[FloatArray, npt.NDArray[np.bool_], str, dict[str, Any]] | None:
     """The reference pose at each of the first n scans: the given trajectory (its time offset
-    found from the scan times unless given), else the log's own corrected poses."""
+    found from the scan times unless given), else the log's own corrected poses, else the
+    reference the recording holds (on the scans' clock; a scan without one within
+    REFERENCE_TOLERANCE_S has none)."""
     if scoring.reference is not None:
         ref = scoring.reference
         if scoring.reference_offset_s is not None:
             off = rel.TimeOffset(scoring.reference_offset_s, 0, 0, "given")
         else:
-            off = rel.find_time_offset(ref.times_s, log.times_s[:n], REFERENCE_TOLERANCE_S)
+            off = reference_offset(ref, log.times_s[:n], log.name)
         poses, ok = refs.at_times(ref, log.times_s[:n], off.offset_s, REFERENCE_TOLERANCE_S)
         return poses, ok, ref.name, off.as_dict()
     if log.track is not None and log.track_name:
         rows = log.track.scan_rows[:n]
         return log.track.gmapping[rows], np.ones(rows.size, dtype=bool), log.track_name, {}
+    if log.reference is not None:
+        poses, ok = refs.at_times(log.reference, log.times_s[:n], 0.0, REFERENCE_TOLERANCE_S)
+        return poses, ok, log.reference.name, {}
     return None
+
+
+def reference_offset(ref: refs.Reference, scan_times_s: FloatArray, log_name: str
+                     ) -> rel.TimeOffset:
+    """Reference time = scan time + offset [s], found so that most of the sparser of the two
+    (the reference's poses or the scans) lie within REFERENCE_TOLERANCE_S of the other's
+    times; LogFormatError naming the reference when no offset does (not this log's)."""
+    try:
+        if ref.times_s.size <= scan_times_s.size:
+            return rel.find_time_offset(ref.times_s, scan_times_s, REFERENCE_TOLERANCE_S)
+        back = rel.find_time_offset(scan_times_s, ref.times_s, REFERENCE_TOLERANCE_S)
+    except rel.RelationsError:
+        raise LogFormatError(
+            f"{ref.name}: for no time offset do half of its {ref.times_s.size} poses (or of the "
+            f"{scan_times_s.size} scans of {log_name}) lie within {REFERENCE_TOLERANCE_S * 1e3:g}"
+            f" ms of the other's times: it is not a trajectory of this log") from None
+    return rel.TimeOffset(-back.offset_s, back.matched, back.times, back.source)
 
 
 def evaluate_log(log: RecordedLog, cfg: offline.OfflineConfig, scoring: Scoring,
@@ -150,10 +178,16 @@ def evaluate_log(log: RecordedLog, cfg: offline.OfflineConfig, scoring: Scoring,
                  ) -> tuple[dict[str, Any], IslandRun]:
     """Islands over the log (the passive mode) and their scores (module docstring)."""
     n = log.n_scans if max_scans is None else min(max_scans, log.n_scans)
+    cfg = offline.for_sensor(cfg, log.geometry)
     run = offline.build_islands_offline(
         log.ranges_m[:n], log.raw_odometry[:n], log.times_s[:n], cfg, progress=progress,
-        angles_rad=log.geometry.angles(), mount=log.mount)
-    metrics: dict[str, Any] = {"log": log.name, "geometry": log.geometry.as_dict()}
+        angles_rad=log.geometry.angles(), mount=log.mount, origins_m=log.geometry.origins())
+    metrics: dict[str, Any] = {"log": log.name, "geometry": log.geometry.as_dict(),
+                               "mode": offline.mode_text(cfg, log.geometry)}
+    if any(log.mount):
+        x, y, th = log.mount
+        metrics["geometry"]["mount_m_m_deg"] = [round(x, 4) + 0.0, round(y, 4) + 0.0,
+                                                round(math.degrees(th), 3) + 0.0]
     if log.times is not None:
         metrics["times"] = log.times.as_dict()
     if log.skipped:
@@ -239,18 +273,20 @@ def headline(m: dict[str, Any]) -> list[str]:
     """The console summary: the log, islands, the bridged (headline) and strict figures beside
     the reference's on the same relations, the agreement with the reference, places."""
     g = m["geometry"]
-    out = [f"{m['log']}: {m['scans']} scans of {g['beams']} beams from {g['angle_min_deg']:g} "
-           f"deg every {g['increment_deg']:g} deg ({g['source']}); {m['island_count']} islands, "
-           f"{m['localized_scans']} scans localized in them"]
+    mount = ("" if "mount_m_m_deg" not in g else
+             " mounted at ({:g} m, {:g} m, {:g} deg) on the robot".format(*g["mount_m_m_deg"]))
+    out = [f"{m['log']}: {m['scans']} scans of {g['description']}{mount}; "
+           f"{m['island_count']} islands ({m['mode']}), {m['localized_scans']} scans localized "
+           f"in them"]
     if "bridged" in m:
-        b = m["bridged"]
+        b, ref = m["bridged"], m.get("relations_reference", "reference")
         out.append(f"  relations (bridged, headline): {b['covered_relations']} covered, islands "
-                   f"{_fmt(_errors(b))}; reference on the same "
+                   f"{_fmt(_errors(b))}; {ref} on the same "
                    f"{_fmt(b['gmapping_same_relations'])}")
         out.append(f"  relations (strict): {m['covered_relations']} covered, islands "
-                   f"{_fmt(_errors(m))}; reference on the same "
+                   f"{_fmt(_errors(m))}; {ref} on the same "
                    f"{_fmt(m['gmapping_same_relations'])}")
-        out.append(f"  reference on all {m['relations']} relations "
+        out.append(f"  {ref} on all {m['relations']} relations "
                    f"{_fmt(m['gmapping_all_relations'])}; {m['relations_outside_log']} relations "
                    f"outside the log left out; time offset {m['time_offset']['offset_s']:.3f} s "
                    f"({m['time_offset']['source']})")
@@ -284,15 +320,17 @@ def _places_line(pl: dict[str, Any] | None) -> str:
             f"islands duplicating a place: {dups}")
 
 
-def from_carmen(path: str, override: Any = None) -> RecordedLog:
-    """A CARMEN log as a RecordedLog: its scans (geometry read from the data, `override` a
+def from_carmen(path: str, override: Any = None, scan_lines: str | None = None) -> RecordedLog:
+    """A CARMEN log as a RecordedLog: its scans (the lines of `scan_lines`, default the log's
+    first laser, else its SONAR lines; geometry read from the data, `override` a
     `logs.geometry.GeometryOverride`), raw odometry, its lines as the track and their corrected
-    poses as the reference. LogFormatError (with its subclasses) on bad input."""
+    poses as the reference (none for SONAR scans). LogFormatError (with its subclasses) on bad
+    input."""
     from pathlib import Path
 
     from island_mapping.logs.carmen import carmen_log, pose_track, read_carmen_records
 
-    records = read_carmen_records(path)
+    records = read_carmen_records(path).with_scans(scan_lines)
     log, track = carmen_log(records, override), pose_track(records)
     if not np.array_equal(track.times_s[track.scan_rows], log.times_s):
         raise LogFormatError(f"{path}: scan times of the pose track and the CARMEN reader differ")
@@ -300,5 +338,6 @@ def from_carmen(path: str, override: Any = None) -> RecordedLog:
     return RecordedLog(
         name=Path(path).name, times_s=log.times_s, ranges_m=log.ranges_m, geometry=log.geometry,
         raw_odometry=log.raw_odometry, mount=log.mount, track=track,
-        track_name="the log's own scan poses (GMapping-corrected in a corrected log)",
+        track_name=("the log's own scan poses (GMapping-corrected in a corrected log)"
+                    if log.has_corrected else ""),
         times=log.times, skipped=log.skipped)

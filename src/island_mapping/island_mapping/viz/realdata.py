@@ -18,8 +18,6 @@ _MAX_COLUMNS = 10
 _GAP_M = 2.0
 
 
-
-
 def island_layout(islands: Sequence[PassiveIsland]) -> list[tuple[float, float]]:
     """Offsets [m] that place each island's model (in its own frame) in a grid, for clarity
     only (no global frame exists): cells as large as most of the models (the 90th percentile
@@ -55,9 +53,10 @@ def plot_islands(
     ax.set_aspect("equal")
     ax.set_xlabel("x [m] (each island in its own frame, offsets for clarity)")
     ax.set_ylabel("y [m]")
-    ax.set_title(title or f"{len(islands)} islands (blue: line model R, green: Fisher)")
+    text = title or f"{len(islands)} islands (blue: line model R, green: Fisher)"
+    ax.set_title(text)
     fig.tight_layout()
-    out = save_figure(fig, path)
+    out = save_figure(fig, path, title=text)
     return out
 
 
