@@ -28,7 +28,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 import rclpy
-from island_msgs_py.conversions import odometry_to_pose
+from island_msgs_py.conversions import ConversionError, odometry_cdr_to_pose
 from island_msgs_py.errors import InputError
 from island_msgs_py.inputs import parse_int
 from island_msgs_py.limits import MAX_DOMAIN_ID, MAX_SEED
@@ -150,20 +150,24 @@ class _Observer(Node):
         self.truth: list[tuple[float, float, float, float]] = []
         self.odom: list[tuple[float, float, float, float]] = []
         self.events: list[dict[str, Any]] = []
-        self.create_subscription(Odometry, "ground_truth", self._on_truth, OBSERVER_QOS)
-        self.create_subscription(Odometry, "odom", self._on_odom, OBSERVER_QOS)
+        # raw: read from the bytes (island_msgs_py.cdr), without building the messages
+        self.create_subscription(Odometry, "ground_truth", self._on_truth, OBSERVER_QOS, raw=True)
+        self.create_subscription(Odometry, "odom", self._on_odom, OBSERVER_QOS, raw=True)
         self.create_subscription(String, "island_builder/events", self._on_event, OBSERVER_QOS)
 
-    @staticmethod
-    def _row(msg: Odometry) -> tuple[float, float, float, float]:
-        pose, _cov, stamp_ns = odometry_to_pose(msg)
-        return (stamp_ns * 1e-9, pose.x, pose.y, pose.theta)
+    def _append(self, path: list[tuple[float, float, float, float]], data: bytes) -> None:
+        try:
+            pose, _cov, stamp_ns = odometry_cdr_to_pose(data)
+        except ConversionError as exc:
+            self.get_logger().warn(f"odometry ignored: {exc}", throttle_duration_sec=5.0)
+            return
+        path.append((stamp_ns * 1e-9, pose.x, pose.y, pose.theta))
 
-    def _on_truth(self, msg: Odometry) -> None:
-        self.truth.append(self._row(msg))
+    def _on_truth(self, data: bytes) -> None:
+        self._append(self.truth, data)
 
-    def _on_odom(self, msg: Odometry) -> None:
-        self.odom.append(self._row(msg))
+    def _on_odom(self, data: bytes) -> None:
+        self._append(self.odom, data)
 
     def _on_event(self, msg: String) -> None:
         try:

@@ -43,11 +43,12 @@ from geometry_msgs.msg import (
 )
 from nav_msgs.msg import Odometry, Path
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
 
-from island_msgs_py import json_io
+from island_msgs_py import cdr, json_io
 from island_msgs_py.errors import InputError
 from island_msgs_py.limits import MAX_SCAN_RANGES, MAX_STAMP_AHEAD_S
 from island_msgs_py.types import (
@@ -100,13 +101,19 @@ def yaw_to_quaternion(theta_rad: float) -> Quaternion:
 
 def quaternion_to_yaw(q: Quaternion) -> float:
     """Yaw [rad] in (-pi, pi] of a quaternion (normalized first; roll/pitch are ignored)."""
-    vals = (q.x, q.y, q.z, q.w)
-    if not all(math.isfinite(v) for v in vals):
-        raise IslandTypeError(f"quaternion has a NaN or infinite component: {vals}")
-    norm = math.sqrt(sum(v * v for v in vals))
+    return _yaw(q.x, q.y, q.z, q.w)
+
+
+def _yaw(qx: float, qy: float, qz: float, qw: float) -> float:
+    """quaternion_to_yaw of the components (x, y, z, w)."""
+    if not (math.isfinite(qx) and math.isfinite(qy) and math.isfinite(qz)
+            and math.isfinite(qw)):
+        raise IslandTypeError(
+            f"quaternion has a NaN or infinite component: {(qx, qy, qz, qw)}")
+    norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
     if norm < 1e-9:
         raise IslandTypeError("quaternion has zero length")
-    x, y, z, w = (v / norm for v in vals)
+    x, y, z, w = qx / norm, qy / norm, qz / norm, qw / norm
     yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     return math.pi if yaw == -math.pi else yaw
 
@@ -475,6 +482,58 @@ def odometry_to_pose(msg: Odometry) -> tuple[Pose2D, FloatArray, int]:
         raise ConversionError(f"odometry pose: {exc}") from None
     full = np.asarray(msg.pose.covariance, dtype=np.float64).reshape(6, 6)
     return pose, full[_COV_ROWS, _COV_COLS], time_to_ns(msg.header.stamp)
+
+
+def odometry_cdr_to_pose(data: bytes) -> tuple[Pose2D, FloatArray, int]:
+    """odometry_to_pose of a serialized Odometry (a raw subscription's bytes), without building
+    the message (`island_msgs_py.cdr`); the same values. ConversionError if malformed."""
+    pose, cov, t_ns, _ = odometry_cdr_to_pose_twist(data)
+    return pose, cov, t_ns
+
+
+def odometry_cdr_to_pose_twist(data: bytes
+                               ) -> tuple[Pose2D, FloatArray, int, tuple[float, float]]:
+    """odometry_cdr_to_pose and the twist (linear.x [m/s], angular.z [rad/s])."""
+    try:
+        f = cdr.read_odometry(data)
+    except cdr.CdrUnsupportedError:
+        try:
+            msg = deserialize_message(data, Odometry)
+        except Exception as exc:  # rclpy raises its own error types for bad bytes
+            raise ConversionError(f"odometry: cannot deserialize: {exc}") from None
+        twist = (float(msg.twist.twist.linear.x), float(msg.twist.twist.angular.z))
+        return (*odometry_to_pose(msg), twist)
+    except cdr.CdrError as exc:
+        raise ConversionError(str(exc)) from None
+    try:
+        pose = Pose2D(f.x, f.y, _yaw(*f.quaternion))
+    except IslandTypeError as exc:
+        raise ConversionError(f"odometry pose: {exc}") from None
+    return pose, np.array(f.cov3x3, dtype=np.float64).reshape(3, 3), f.stamp_ns, (f.v, f.w)
+
+
+def pose_to_odometry_cdr(
+    pose: Pose2D,
+    cov: npt.ArrayLike | None,
+    t_ns: int,
+    frame_id: str,
+    child_frame_id: str = "base_link",
+    twist: tuple[float, float] = (0.0, 0.0),
+) -> bytes:
+    """pose_to_odometry serialized (what a publisher sends): the same message, built without
+    rclpy's message objects (`island_msgs_py.cdr`)."""
+    flat: tuple[float, ...] | None = None
+    if cov is not None:
+        c = np.asarray(cov, dtype=np.float64)
+        flat = tuple(c.reshape(-1).tolist())
+        if c.shape != (3, 3) or not all(math.isfinite(v) for v in flat):
+            raise ConversionError(f"odometry covariance must be a finite 3x3, got {c.shape}")
+    try:
+        return cdr.write_odometry(int(t_ns), frame_id, child_frame_id, float(pose.x),
+                                  float(pose.y), float(pose.theta), flat, float(twist[0]),
+                                  float(twist[1]))
+    except cdr.CdrError as exc:
+        raise ConversionError(str(exc)) from None
 
 
 # ----------------------------------------------------------------------------- Twist

@@ -17,7 +17,7 @@ from sensor_msgs.msg import LaserScan
 from island_msgs_py.conversions import (
     ConversionError,
     check_stamp,
-    odometry_to_pose,
+    odometry_cdr_to_pose,
     scan_to_arrays,
     time_to_ns,
 )
@@ -40,9 +40,9 @@ def subscribe_paired_scans(
     (for its counters)."""
     pairer: ScanOdomPairer[ScanArrays] = ScanOdomPairer(max_buffer)
 
-    def on_odom(msg: Odometry) -> None:
+    def on_odom(data: bytes) -> None:
         try:
-            pose, _, t_ns = odometry_to_pose(msg)
+            pose, _, t_ns = odometry_cdr_to_pose(data)
             check_stamp(t_ns, clock_ns(node), "/odom")
         except ConversionError as exc:
             warn("odom", exc)
@@ -62,6 +62,7 @@ def subscribe_paired_scans(
         if pairer.dropped_scans > dropped:
             warn("sonar/scan", ValueError("no odometry at or after a scan's stamp"))
 
-    node.create_subscription(Odometry, "odom", on_odom, STREAM_QOS)
+    # raw: read from the bytes (island_msgs_py.cdr), without building the message
+    node.create_subscription(Odometry, "odom", on_odom, STREAM_QOS, raw=True)
     node.create_subscription(LaserScan, "sonar/scan", on_scan, STREAM_QOS)
     return pairer

@@ -36,7 +36,7 @@ from island_msgs_py.conversions import (
     ConversionError,
     check_stamp,
     command_to_twist_stamped,
-    odometry_to_pose,
+    odometry_cdr_to_pose_twist,
     scan_to_arrays,
     time_to_ns,
 )
@@ -162,7 +162,8 @@ class ExplorerNode(Node):
 
     def _start(self) -> None:
         self.exploring = True
-        self.create_subscription(Odometry, "odom", self._on_odom, STREAM_QOS)
+        # raw: read from the bytes (island_msgs_py.cdr), without building the message
+        self.create_subscription(Odometry, "odom", self._on_odom, STREAM_QOS, raw=True)
         self.create_subscription(LaserScan, "sonar/scan", self._on_scan, STREAM_QOS)
         self.create_subscription(String, "island_builder/decision", self._on_decision,
                                  DECISION_QOS)
@@ -172,15 +173,14 @@ class ExplorerNode(Node):
         log_ready(self)
 
     # --- inputs --------------------------------------------------------------------------------
-    def _on_odom(self, msg: Odometry) -> None:
+    def _on_odom(self, data: bytes) -> None:
         try:
-            pose, _, t_ns = odometry_to_pose(msg)
+            pose, _, t_ns, (v, w) = odometry_cdr_to_pose_twist(data)
             check_stamp(t_ns, clock_ns(self), "odom")
         except ConversionError as exc:
             self._warn("odom", exc)
             return
-        self._twists.append((t_ns, float(msg.twist.twist.linear.x),
-                             float(msg.twist.twist.angular.z)))
+        self._twists.append((t_ns, v, w))
         self._paired(paired_only(self._pairer.odometry(t_ns, pose)))
 
     def _on_scan(self, msg: LaserScan) -> None:

@@ -40,7 +40,7 @@ from island_msgs_py.conversions import (
     NS_PER_S,
     ConversionError,
     check_stamp,
-    fill_odometry,
+    pose_to_odometry_cdr,
     twist_stamped_to_command,
 )
 from island_msgs_py.qos import STREAM_QOS
@@ -123,8 +123,6 @@ class OdometryNode(Node):
         self.robot = SimRobot(self.world, start, np.random.default_rng(self.cfg.seed),
                               self.cfg.robot, self.cfg.odometry)
         self.clock = SimClock(sim)
-        self._truth_msg = Odometry()  # reused: publishing copies, building costs ~0.2 ms
-        self._odom_msg = Odometry()
         self._clock_msg = Clock()
         self.gate = CommandGate(sim.lockstep, round(sim.cmd_timeout_s * 1e9))
         self._warn = BadMessageLog(self)
@@ -273,10 +271,13 @@ class OdometryNode(Node):
         vel = self.robot.velocity
         c = self.cfg
         base, odom = c.frame_prefix + c.base_frame, c.frame_prefix + c.odom_frame
-        self.truth_pub.publish(fill_odometry(self._truth_msg, self.robot.true_pose, None, t_ns,
-                                             c.map_frame, base, vel))
-        self.odom_pub.publish(fill_odometry(self._odom_msg, self.robot.odom_pose,
-                                            self.robot.odom_covariance, t_ns, odom, base, vel))
+        # Serialized here (island_msgs_py.cdr): the same message as fill_odometry, without
+        # building rclpy's message objects at every physics step.
+        self.truth_pub.publish(pose_to_odometry_cdr(self.robot.true_pose, None, t_ns,
+                                                    c.map_frame, base, vel))
+        self.odom_pub.publish(pose_to_odometry_cdr(self.robot.odom_pose,
+                                                   self.robot.odom_covariance, t_ns, odom, base,
+                                                   vel))
 
 
 def main(args: Sequence[str] | None = None) -> int:
