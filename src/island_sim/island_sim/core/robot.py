@@ -170,9 +170,23 @@ class SimLoopConfig:
     )
     publish_rate_hz: float = field(
         default=50.0,
-        metadata={"help": "rate of /odom, /ground_truth and /clock; must divide "
-                  "physics_rate_hz and be a multiple of sensor_rate_hz [Hz]",
+        metadata={"help": "rate of /odom (and the highest of /ground_truth and /clock); must "
+                  "divide physics_rate_hz and be a multiple of sensor_rate_hz [Hz]",
                   "range": (0.0, math.inf)},
+    )
+    truth_rate_hz: float = field(
+        default=0.0,
+        metadata={"help": "rate of /ground_truth; 0 = publish_rate_hz; else it must divide "
+                  "publish_rate_hz and be a multiple of sensor_rate_hz (the sonar fires on "
+                  "the sensor period's stamps, so the sensor rate is all it needs) [Hz]",
+                  "range": (0.0, math.inf)},
+    )
+    clock_rate_hz: float = field(
+        default=0.0,
+        metadata={"help": "rate of /clock; 0 = publish_rate_hz; else it must divide "
+                  "publish_rate_hz and be a multiple of sensor_rate_hz (in lockstep the steps "
+                  "between two sensor instants are taken at once, so the sensor rate tells "
+                  "sim-time nodes as much) [Hz]", "range": (0.0, math.inf)},
     )
     real_time_factor: float = field(
         default=1.0,
@@ -210,6 +224,8 @@ class SimLoopConfig:
                 "physics_rate_hz": self.physics_rate_hz,
                 "sensor_rate_hz": self.sensor_rate_hz,
                 "publish_rate_hz": self.publish_rate_hz,
+                "truth_rate_hz": self.truth_rate_hz,
+                "clock_rate_hz": self.clock_rate_hz,
                 "real_time_factor": self.real_time_factor,
                 "lockstep_timeout_s": self.lockstep_timeout_s,
                 "cmd_timeout_s": self.cmd_timeout_s,
@@ -224,14 +240,12 @@ class SimLoopConfig:
                 f"SimLoopConfig: sensor_rate_hz ({self.sensor_rate_hz}) must divide "
                 f"physics_rate_hz ({self.physics_rate_hz}) into a whole number of steps"
             )
-        pub = self.physics_rate_hz / self.publish_rate_hz if self.publish_rate_hz > 0 else 0.0
-        per = self.publish_rate_hz / self.sensor_rate_hz
-        if (pub < 1 or abs(pub - round(pub)) > 1e-9 or per < 1 or abs(per - round(per)) > 1e-9):
-            raise RobotError(
-                f"SimLoopConfig.publish_rate_hz ({self.publish_rate_hz}) must divide "
-                f"physics_rate_hz ({self.physics_rate_hz}) and be a whole multiple of "
-                f"sensor_rate_hz ({self.sensor_rate_hz})"
-            )
+        _check_rate("publish_rate_hz", self.publish_rate_hz, "physics_rate_hz",
+                    self.physics_rate_hz, self.sensor_rate_hz)
+        for name in ("truth_rate_hz", "clock_rate_hz"):
+            if getattr(self, name) != 0.0:
+                _check_rate(name, getattr(self, name), "publish_rate_hz", self.publish_rate_hz,
+                            self.sensor_rate_hz)
         if self.real_time_factor < 0:
             raise RobotError(
                 f"SimLoopConfig.real_time_factor: must be >= 0, got {self.real_time_factor}"
@@ -261,6 +275,25 @@ class SimLoopConfig:
         """Physics steps per sonar/controller period [-]."""
         return round(self.physics_rate_hz / self.sensor_rate_hz)
 
+    @property
+    def steps_per_truth(self) -> int:
+        """Physics steps between publications of /ground_truth [-]."""
+        return round(self.physics_rate_hz / (self.truth_rate_hz or self.publish_rate_hz))
+
+    @property
+    def steps_per_clock(self) -> int:
+        """Physics steps between publications of /clock [-]."""
+        return round(self.physics_rate_hz / (self.clock_rate_hz or self.publish_rate_hz))
+
+
+def _check_rate(name: str, rate_hz: float, of_name: str, of_hz: float, sensor_hz: float) -> None:
+    """`rate_hz` must divide `of_hz` and be a whole multiple of `sensor_hz` (RobotError)."""
+    div = of_hz / rate_hz if rate_hz > 0 else 0.0
+    per = rate_hz / sensor_hz
+    if div < 1 or abs(div - round(div)) > 1e-9 or per < 1 or abs(per - round(per)) > 1e-9:
+        raise RobotError(f"SimLoopConfig.{name} ({rate_hz}) must divide {of_name} ({of_hz}) "
+                         f"and be a whole multiple of sensor_rate_hz ({sensor_hz})")
+
 
 class SimClock:
     """Fixed-step simulated time: the step count, which steps publish, which end a sensor period
@@ -270,6 +303,8 @@ class SimClock:
         self.dt_ns = cfg.dt_ns
         self.steps_per_period = cfg.steps_per_sensor_period
         self.steps_per_publish = cfg.steps_per_publish
+        self.steps_per_truth = cfg.steps_per_truth
+        self.steps_per_clock = cfg.steps_per_clock
         self._stop_ns = round(cfg.stop_after_s * 1e9)
         self.step_count = 0
 
@@ -287,9 +322,14 @@ class SimClock:
         return self.step_count % self.steps_per_period == 0
 
     def advance(self) -> bool:
-        """One step taken; True when the new instant is to be published."""
+        """One step taken; True when the new instant is to be published (/odom, and /clock or
+        /ground_truth where `due` says so)."""
         self.step_count += 1
         return self.step_count % self.steps_per_publish == 0
+
+    def due(self, steps: int) -> bool:
+        """Is the current instant one of every `steps` steps (e.g. `steps_per_clock`)?"""
+        return self.step_count % steps == 0
 
 
 class RealTimePacer:

@@ -264,7 +264,7 @@ class OdometryNode(Node):
 
     def _publish(self) -> None:
         t_ns = self.sim_time_ns
-        if self.clock_pub is not None:
+        if self.clock_pub is not None and self.clock.due(self.clock.steps_per_clock):
             self._clock_msg.clock.sec = int(t_ns // NS_PER_S)
             self._clock_msg.clock.nanosec = int(t_ns % NS_PER_S)
             self.clock_pub.publish(self._clock_msg)
@@ -273,8 +273,9 @@ class OdometryNode(Node):
         base, odom = c.frame_prefix + c.base_frame, c.frame_prefix + c.odom_frame
         # Serialized here (island_msgs_py.cdr): the same message as fill_odometry, without
         # building rclpy's message objects at every physics step.
-        self.truth_pub.publish(pose_to_odometry_cdr(self.robot.true_pose, None, t_ns,
-                                                    c.map_frame, base, vel))
+        if self.clock.due(self.clock.steps_per_truth):
+            self.truth_pub.publish(pose_to_odometry_cdr(self.robot.true_pose, None, t_ns,
+                                                        c.map_frame, base, vel))
         self.odom_pub.publish(pose_to_odometry_cdr(self.robot.odom_pose,
                                                    self.robot.odom_covariance, t_ns, odom, base,
                                                    vel))
