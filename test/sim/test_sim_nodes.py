@@ -305,6 +305,7 @@ def test_ground_truth_and_clock_at_their_own_rates_odometry_at_every_step(
             ex.spin_once(timeout_sec=0.05)
         assert got["odom"] == [k * 20_000_000 for k in range(1, 51)]  # not locked: from step 1
         assert got["truth"] == got["clock"] == [k * 100_000_000 for k in range(1, 11)]
+        assert odo.finished_future.done() and odo.finished_future.result() == 10**9
         pose, cov, _ = odometry_to_pose(last[0])
         assert pose == odo.robot.odom_pose
         assert np.array_equal(cov, odo.robot.odom_covariance)

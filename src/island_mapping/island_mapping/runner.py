@@ -40,11 +40,13 @@ from island_sim.nodes.hall_follower_node import HallFollowerNode
 from island_sim.nodes.odometry_node import OdometryNode
 from island_sim.nodes.sonar_node import SonarNode
 from nav_msgs.msg import Odometry
+from rclpy.clock import Clock, ClockType
 from rclpy.context import Context
 from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
+from rclpy.task import Future
 from std_msgs.msg import String
 
 from island_mapping.bag.recorder import RunRecorder
@@ -63,6 +65,8 @@ OBSERVER_QOS = QoSProfile(depth=1000)
 """Deep enough that a burst of ground truth between two spins is never dropped."""
 RECORDER_MATCH_WAIT_S = 5.0
 """Wall time to wait for the recorder to match the run's publishers before the clock starts."""
+PROGRESS_PERIOD_S = 0.2
+"""Wall time between two progress reports while the run spins [s]."""
 BUILDER_READY_WAIT_S = 10.0
 """Wall time to wait for the builder to find its services and subscribe before the clock
 starts (it maps from the first step, so a recording replays into the same events)."""
@@ -271,7 +275,7 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
                 executor.add_node(n)
         _wait_for_builder(executor, builder, explorer)
         executor.add_node(odo)  # the clock starts
-        wall = _spin_until_finished(executor, odo, explorer, cfg, progress)
+        wall = _spin_until_finished(executor, odo, explorer, observer, cfg, progress)
         if progress is not None:
             progress(1.0)
         return RunRecord(
@@ -305,24 +309,40 @@ def run(cfg: RunConfig, progress: Callable[[float], None] | None = None) -> RunR
 
 
 def _spin_until_finished(executor: Executor, odo: OdometryNode,
-                         explorer: ExplorerNode | None, cfg: RunConfig,
+                         explorer: ExplorerNode | None, observer: Node, cfg: RunConfig,
                          progress: Callable[[float], None] | None) -> float:
     """Spin until the simulator has run `cfg.sim_seconds` (or the explorer, if any, is done),
     then let the last messages and the builder's final service calls arrive; returns the wall
-    time since the clock started [s]."""
+    time since the clock started [s].
+
+    One `spin_until_future_complete` call: the executor (the events executor's loop is C++)
+    dispatches every callback without a return to Python per message, and stops right after
+    the callback in which the simulator reached the end or the explorer said it is done."""
     wall0 = time.monotonic()
-    last_report = -1.0
-    while not odo.finished and not (explorer is not None and explorer.done):
-        if time.monotonic() - wall0 > cfg.wall_timeout_s:
-            raise RunError(
-                f"run did not reach {cfg.sim_seconds:.0f} s of sim time within "
-                f"{cfg.wall_timeout_s:.0f} s wall (at {odo.sim_time_ns * 1e-9:.0f} s)"
-            )
-        executor.spin_once(timeout_sec=0.05)
-        t_sim = odo.sim_time_ns * 1e-9
-        if progress is not None and t_sim - last_report >= 1.0:
-            last_report = t_sim
-            progress(min(1.0, t_sim / cfg.sim_seconds))
+    stop = Future()
+
+    def _stop(_done: Future) -> None:
+        if not stop.done():
+            stop.set_result(True)
+
+    odo.finished_future.add_done_callback(_stop)
+    if explorer is not None:
+        explorer.done_future.add_done_callback(_stop)
+    timer = None
+    if progress is not None:
+        report = progress
+        timer = observer.create_timer(
+            PROGRESS_PERIOD_S,
+            lambda: report(min(1.0, odo.sim_time_ns * 1e-9 / cfg.sim_seconds)),
+            clock=Clock(clock_type=ClockType.STEADY_TIME))
+    executor.spin_until_future_complete(stop, timeout_sec=cfg.wall_timeout_s)
+    if timer is not None:
+        observer.destroy_timer(timer)
+    if not stop.done():
+        raise RunError(
+            f"run did not reach {cfg.sim_seconds:.0f} s of sim time within "
+            f"{cfg.wall_timeout_s:.0f} s wall (at {odo.sim_time_ns * 1e-9:.0f} s)"
+        )
     settle = time.monotonic() + 0.5
     while time.monotonic() < settle:
         executor.spin_once(timeout_sec=0.02)

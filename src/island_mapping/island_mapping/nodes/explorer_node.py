@@ -51,6 +51,7 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
 
@@ -135,6 +136,8 @@ class ExplorerNode(Node):
         self.add_cli = self.create_client(SetParameters, "topo_graph/add")
         self.exploring = False
         """Subscribed (once the services are up, see wait_for_services)."""
+        self.done_future = Future()
+        """Done in the callback in which the explorer first says it is done (`done`)."""
         self._publish_status()
         if c.wait_for_services:
             self.get_logger().info(f"waiting for {self.builder_cli.service_name} and "
@@ -213,6 +216,7 @@ class ExplorerNode(Node):
             self.explorer.on_graph(TopoGraph.from_json(msg.data))
         except (GraphFormatError, GraphError, IslandTypeError) as exc:
             self._warn("topo_graph/json", exc)
+        self._note_done()
 
     def _on_progress(self, msg: String) -> None:
         try:
@@ -245,6 +249,11 @@ class ExplorerNode(Node):
             self.cmd_pub.publish(command_to_twist_stamped(v, w, t_ns, self._base_frame))
             self.scans_answered += 1
         self._publish_status()
+        self._note_done()
+
+    def _note_done(self) -> None:
+        if self.explorer.done and not self.done_future.done():
+            self.done_future.set_result(True)
 
     # --- outputs -------------------------------------------------------------------------------
     def _send(self, requests: tuple[mcv.ExplorerRequest | ExitUpdate | NewExit, ...]) -> None:

@@ -48,6 +48,7 @@ from island_msgs_py.ros_params import BadMessageLog, declare_config, log_ready, 
 from island_msgs_py.types import Pose2D
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
+from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
 from island_sim.core.robot import (
@@ -127,6 +128,9 @@ class OdometryNode(Node):
         self.gate = CommandGate(sim.lockstep, round(sim.cmd_timeout_s * 1e9))
         self._warn = BadMessageLog(self)
         self.lockstep_timeouts = 0
+        self.finished_future = Future()
+        """Done (with the sim time [ns]) at the step that reaches `sim.stop_after_s`: an
+        executor can spin until it, e.g. `spin_until_future_complete`."""
         self._wait_since = 0.0
         self._started = not sim.lockstep
         self._created = time.monotonic()
@@ -237,6 +241,8 @@ class OdometryNode(Node):
             self.robot.step(v, w, self.clock.dt_ns * 1e-9)
             if self.clock.advance():
                 self._publish()
+            if self.clock.finished and not self.finished_future.done():
+                self.finished_future.set_result(self.clock.sim_time_ns)
             if self._boundary_wait():
                 return
 
