@@ -28,11 +28,12 @@ from typing import Any, TypeVar
 
 import numpy as np
 import rclpy
-from island_msgs_py.conversions import ConversionError, odometry_cdr_to_pose
+from island_msgs_py.conversions import ConversionError
 from island_msgs_py.errors import InputError
 from island_msgs_py.inputs import parse_int
 from island_msgs_py.limits import MAX_DOMAIN_ID, MAX_SEED
 from island_msgs_py.ros_params import destroy_nodes, ensure_ros_env
+from island_msgs_py.serialized import odometry_cdr_to_pose
 from island_msgs_py.types import FloatArray
 from island_sim.core.hall_follower_config import HallFollowerConfig
 from island_sim.core.robot import SimLoopConfig
@@ -155,7 +156,7 @@ class _Observer(Node):
         self.truth: list[tuple[float, float, float, float]] = []
         self.odom: list[tuple[float, float, float, float]] = []
         self.events: list[dict[str, Any]] = []
-        # raw: read from the bytes (island_msgs_py.cdr), without building the messages
+        # raw: read from the bytes (island_msgs_py.serialized), without building the messages
         self.create_subscription(Odometry, "ground_truth", self._on_truth, OBSERVER_QOS, raw=True)
         self.create_subscription(Odometry, "odom", self._on_odom, OBSERVER_QOS, raw=True)
         self.create_subscription(String, "island_builder/events", self._on_event, OBSERVER_QOS)

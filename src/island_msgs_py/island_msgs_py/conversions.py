@@ -43,12 +43,11 @@ from geometry_msgs.msg import (
 )
 from nav_msgs.msg import Odometry, Path
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import ColorRGBA, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
 
-from island_msgs_py import cdr, json_io
+from island_msgs_py import json_io
 from island_msgs_py.errors import InputError
 from island_msgs_py.limits import MAX_SCAN_RANGES, MAX_STAMP_AHEAD_S
 from island_msgs_py.types import (
@@ -101,11 +100,11 @@ def yaw_to_quaternion(theta_rad: float) -> Quaternion:
 
 def quaternion_to_yaw(q: Quaternion) -> float:
     """Yaw [rad] in (-pi, pi] of a quaternion (normalized first; roll/pitch are ignored)."""
-    return _yaw(q.x, q.y, q.z, q.w)
+    return quaternion_components_to_yaw(q.x, q.y, q.z, q.w)
 
 
-def _yaw(qx: float, qy: float, qz: float, qw: float) -> float:
-    """quaternion_to_yaw of the components (x, y, z, w)."""
+def quaternion_components_to_yaw(qx: float, qy: float, qz: float, qw: float) -> float:
+    """quaternion_to_yaw of the components (x, y, z, w) [-]."""
     if not (math.isfinite(qx) and math.isfinite(qy) and math.isfinite(qz)
             and math.isfinite(qw)):
         raise IslandTypeError(
@@ -382,6 +381,26 @@ def arrays_to_scan(
     scan_time_s: float = 0.0,
 ) -> LaserScan:
     """LaserScan of ranges (N,) [m] at evenly spaced bearings (N,) [rad]; inf = no echo."""
+    r, (angle_min, angle_max, inc) = scan_grid(ranges_m, angles_rad)
+    lo, hi = range_limits_m
+    msg = LaserScan()
+    msg.header.stamp = ns_to_time(t_ns)
+    msg.header.frame_id = frame_id
+    msg.angle_min = angle_min
+    msg.angle_max = angle_max
+    msg.angle_increment = inc
+    msg.time_increment = 0.0
+    msg.scan_time = float(scan_time_s)
+    msg.range_min = float(lo)
+    msg.range_max = float(hi)
+    msg.ranges = r.tolist()
+    return msg
+
+
+def scan_grid(ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike
+              ) -> tuple[FloatArray, tuple[float, float, float]]:
+    """The ranges (N,) [m] of a LaserScan (inf where not finite) and its (angle_min,
+    angle_max, angle_increment) [rad]; ConversionError unless the bearings are evenly spaced."""
     r = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
     a = np.asarray(angles_rad, dtype=np.float64).reshape(-1)
     if r.shape != a.shape or r.size == 0:
@@ -389,39 +408,39 @@ def arrays_to_scan(
     inc = float(a[1] - a[0]) if a.size > 1 else 0.0
     if a.size > 1 and not np.allclose(np.diff(a), inc, atol=_ANGLE_GRID_TOL_RAD):
         raise ConversionError("scan: bearings must be evenly spaced for a LaserScan")
-    lo, hi = range_limits_m
-    msg = LaserScan()
-    msg.header.stamp = ns_to_time(t_ns)
-    msg.header.frame_id = frame_id
-    msg.angle_min = float(a[0])
-    msg.angle_max = float(a[-1])
-    msg.angle_increment = inc
-    msg.time_increment = 0.0
-    msg.scan_time = float(scan_time_s)
-    msg.range_min = float(lo)
-    msg.range_max = float(hi)
-    msg.ranges = [float(v) if math.isfinite(v) else math.inf for v in r]
-    return msg
+    return np.where(np.isfinite(r), r, np.inf), (float(a[0]), float(a[-1]), inc)
 
 
 def scan_to_arrays(msg: LaserScan, max_ranges: int = MAX_SCAN_RANGES
                    ) -> tuple[FloatArray, FloatArray]:
     """(ranges (N,) [m], bearings (N,) [rad]); NaN and out-of-limit readings become inf. A scan
     of more than `max_ranges` ranges is refused before any work on it."""
-    if len(msg.ranges) > max_ranges:
+    check_scan_count(len(msg.ranges), max_ranges)
+    return scan_arrays(np.asarray(msg.ranges, dtype=np.float64), msg.angle_min,
+                        msg.angle_increment, msg.range_min, msg.range_max)
+
+
+def check_scan_count(n: int, max_ranges: int) -> None:
+    """ConversionError for a scan of more than `max_ranges` ranges (before any work on it)."""
+    if n > max_ranges:
         raise ConversionError(
-            f"scan: ranges has {len(msg.ranges)} values (the limit is {max_ranges}, more than "
-            "any sensor of the project produces)")
-    r = np.asarray(msg.ranges, dtype=np.float64)
+            f"scan: ranges has {n} values (the limit is {max_ranges}, more than any sensor of "
+            "the project produces)")
+
+
+def scan_arrays(r: FloatArray, angle_min: float, angle_increment: float, range_min: float,
+                 range_max: float) -> tuple[FloatArray, FloatArray]:
+    """scan_to_arrays of a LaserScan's fields: ranges (N,) [m] as float64, the angles [rad] and
+    limits [m] as rclpy gives them."""
     if r.size == 0:
         raise ConversionError("scan: no ranges")
-    if not (math.isfinite(msg.angle_min) and math.isfinite(msg.angle_increment)):
+    if not (math.isfinite(angle_min) and math.isfinite(angle_increment)):
         raise ConversionError(
-            f"scan: angle_min/angle_increment must be finite, got {msg.angle_min}, "
-            f"{msg.angle_increment}"
+            f"scan: angle_min/angle_increment must be finite, got {angle_min}, "
+            f"{angle_increment}"
         )
-    a = msg.angle_min + msg.angle_increment * np.arange(r.size, dtype=np.float64)
-    ok = np.isfinite(r) & (r >= msg.range_min) & (r <= msg.range_max)
+    a = angle_min + angle_increment * np.arange(r.size, dtype=np.float64)
+    ok = np.isfinite(r) & (r >= range_min) & (r <= range_max)
     return np.where(ok, r, np.inf), a
 
 
@@ -482,58 +501,6 @@ def odometry_to_pose(msg: Odometry) -> tuple[Pose2D, FloatArray, int]:
         raise ConversionError(f"odometry pose: {exc}") from None
     full = np.asarray(msg.pose.covariance, dtype=np.float64).reshape(6, 6)
     return pose, full[_COV_ROWS, _COV_COLS], time_to_ns(msg.header.stamp)
-
-
-def odometry_cdr_to_pose(data: bytes) -> tuple[Pose2D, FloatArray, int]:
-    """odometry_to_pose of a serialized Odometry (a raw subscription's bytes), without building
-    the message (`island_msgs_py.cdr`); the same values. ConversionError if malformed."""
-    pose, cov, t_ns, _ = odometry_cdr_to_pose_twist(data)
-    return pose, cov, t_ns
-
-
-def odometry_cdr_to_pose_twist(data: bytes
-                               ) -> tuple[Pose2D, FloatArray, int, tuple[float, float]]:
-    """odometry_cdr_to_pose and the twist (linear.x [m/s], angular.z [rad/s])."""
-    try:
-        f = cdr.read_odometry(data)
-    except cdr.CdrUnsupportedError:
-        try:
-            msg = deserialize_message(data, Odometry)
-        except Exception as exc:  # rclpy raises its own error types for bad bytes
-            raise ConversionError(f"odometry: cannot deserialize: {exc}") from None
-        twist = (float(msg.twist.twist.linear.x), float(msg.twist.twist.angular.z))
-        return (*odometry_to_pose(msg), twist)
-    except cdr.CdrError as exc:
-        raise ConversionError(str(exc)) from None
-    try:
-        pose = Pose2D(f.x, f.y, _yaw(*f.quaternion))
-    except IslandTypeError as exc:
-        raise ConversionError(f"odometry pose: {exc}") from None
-    return pose, np.array(f.cov3x3, dtype=np.float64).reshape(3, 3), f.stamp_ns, (f.v, f.w)
-
-
-def pose_to_odometry_cdr(
-    pose: Pose2D,
-    cov: npt.ArrayLike | None,
-    t_ns: int,
-    frame_id: str,
-    child_frame_id: str = "base_link",
-    twist: tuple[float, float] = (0.0, 0.0),
-) -> bytes:
-    """pose_to_odometry serialized (what a publisher sends): the same message, built without
-    rclpy's message objects (`island_msgs_py.cdr`)."""
-    flat: tuple[float, ...] | None = None
-    if cov is not None:
-        c = np.asarray(cov, dtype=np.float64)
-        flat = tuple(c.reshape(-1).tolist())
-        if c.shape != (3, 3) or not all(math.isfinite(v) for v in flat):
-            raise ConversionError(f"odometry covariance must be a finite 3x3, got {c.shape}")
-    try:
-        return cdr.write_odometry(int(t_ns), frame_id, child_frame_id, float(pose.x),
-                                  float(pose.y), float(pose.theta), flat, float(twist[0]),
-                                  float(twist[1]))
-    except cdr.CdrError as exc:
-        raise ConversionError(str(exc)) from None
 
 
 # ----------------------------------------------------------------------------- Twist

@@ -14,15 +14,10 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 
-from island_msgs_py.conversions import (
-    ConversionError,
-    check_stamp,
-    odometry_cdr_to_pose,
-    scan_to_arrays,
-    time_to_ns,
-)
+from island_msgs_py.conversions import ConversionError, check_stamp
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import clock_ns
+from island_msgs_py.serialized import odometry_cdr_to_pose, scan_cdr_to_arrays
 from island_msgs_py.stamps import Paired, ScanOdomPairer, paired_only
 from island_msgs_py.types import FloatArray
 
@@ -49,10 +44,10 @@ def subscribe_paired_scans(
             return
         handle(paired_only(pairer.odometry(t_ns, pose)))
 
-    def on_scan(msg: LaserScan) -> None:
+    def on_scan(data: bytes) -> None:
         try:
-            scan = scan_to_arrays(msg)
-            t_ns = time_to_ns(msg.header.stamp)
+            ranges, angles, t_ns = scan_cdr_to_arrays(data)
+            scan = (ranges, angles)
             check_stamp(t_ns, clock_ns(node), "/sonar/scan")
         except ConversionError as exc:
             warn("sonar/scan", exc)
@@ -62,7 +57,7 @@ def subscribe_paired_scans(
         if pairer.dropped_scans > dropped:
             warn("sonar/scan", ValueError("no odometry at or after a scan's stamp"))
 
-    # raw: read from the bytes (island_msgs_py.cdr), without building the message
+    # raw: both read from the bytes (island_msgs_py.serialized), without building the messages
     node.create_subscription(Odometry, "odom", on_odom, STREAM_QOS, raw=True)
-    node.create_subscription(LaserScan, "sonar/scan", on_scan, STREAM_QOS)
+    node.create_subscription(LaserScan, "sonar/scan", on_scan, STREAM_QOS, raw=True)
     return pairer

@@ -36,14 +36,12 @@ from island_msgs_py.conversions import (
     ConversionError,
     check_stamp,
     command_to_twist_stamped,
-    odometry_cdr_to_pose_twist,
-    scan_to_arrays,
-    time_to_ns,
 )
 from island_msgs_py.hall_perception import HallPerceptionConfig
 from island_msgs_py.json_io import GraphFormatError
 from island_msgs_py.qos import LATCHED, STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, clock_ns, declare_config, log_ready, run_node
+from island_msgs_py.serialized import odometry_cdr_to_pose_twist, scan_cdr_to_arrays
 from island_msgs_py.stamps import Paired, ScanOdomPairer, StampJoin, paired_only
 from island_msgs_py.types import ControlStrategy, ExitUpdate, FloatArray, IslandTypeError, NewExit
 from nav_msgs.msg import Odometry
@@ -165,9 +163,9 @@ class ExplorerNode(Node):
 
     def _start(self) -> None:
         self.exploring = True
-        # raw: read from the bytes (island_msgs_py.cdr), without building the message
+        # raw: both read from the bytes (island_msgs_py.serialized), without building them
         self.create_subscription(Odometry, "odom", self._on_odom, STREAM_QOS, raw=True)
-        self.create_subscription(LaserScan, "sonar/scan", self._on_scan, STREAM_QOS)
+        self.create_subscription(LaserScan, "sonar/scan", self._on_scan, STREAM_QOS, raw=True)
         self.create_subscription(String, "island_builder/decision", self._on_decision,
                                  DECISION_QOS)
         self.create_subscription(String, "topo_graph/json", self._on_graph, LATCHED)
@@ -186,10 +184,10 @@ class ExplorerNode(Node):
         self._twists.append((t_ns, v, w))
         self._paired(paired_only(self._pairer.odometry(t_ns, pose)))
 
-    def _on_scan(self, msg: LaserScan) -> None:
+    def _on_scan(self, data: bytes) -> None:
         try:
-            scan = scan_to_arrays(msg)
-            t_ns = time_to_ns(msg.header.stamp)
+            ranges, angles, t_ns = scan_cdr_to_arrays(data)
+            scan = (ranges, angles)
             check_stamp(t_ns, clock_ns(self), "sonar/scan")
         except ConversionError as exc:
             self._warn("sonar/scan", exc)

@@ -48,9 +48,6 @@ from island_msgs_py.conversions import (
     ConversionError,
     check_stamp,
     command_to_twist_stamped,
-    odometry_cdr_to_pose,
-    scan_to_arrays,
-    time_to_ns,
 )
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import (
@@ -60,6 +57,7 @@ from island_msgs_py.ros_params import (
     log_ready,
     run_node,
 )
+from island_msgs_py.serialized import odometry_cdr_to_pose, scan_cdr_to_arrays
 from island_msgs_py.stamps import ScanOdomPairer
 from island_msgs_py.types import ControlStrategy, IslandTypeError
 from nav_msgs.msg import Odometry
@@ -170,10 +168,10 @@ class IslandBuilderNode(Node):
 
     def _start_mapping(self) -> None:
         self.mapping = True
-        # raw: 50 messages a simulated second each, read from the bytes (island_msgs_py.cdr)
+        # raw: read from the bytes (island_msgs_py.serialized), without building the messages
         self.create_subscription(Odometry, "odom", self._on_odom, STREAM_QOS, raw=True)
         self.create_subscription(Odometry, "ground_truth", self._on_truth, STREAM_QOS, raw=True)
-        self.create_subscription(LaserScan, "sonar/scan", self._on_scan, STREAM_QOS)
+        self.create_subscription(LaserScan, "sonar/scan", self._on_scan, STREAM_QOS, raw=True)
         self.create_subscription(String, "hall_follower/progress", self._on_strategy,
                                  PROGRESS_QOS)
         log_ready(self)
@@ -208,10 +206,9 @@ class IslandBuilderNode(Node):
         except IslandTypeError as exc:
             self._warn("hall_follower/progress", exc)
 
-    def _on_scan(self, msg: LaserScan) -> None:
+    def _on_scan(self, data: bytes) -> None:
         try:
-            ranges, angles = scan_to_arrays(msg)
-            t_ns = time_to_ns(msg.header.stamp)
+            ranges, angles, t_ns = scan_cdr_to_arrays(data)
             check_stamp(t_ns, clock_ns(self), "sonar/scan")
             scan = checked_scan(t_ns * 1e-9, ranges, angles)
             self._act(feed(self.builder, self.pairer.scan(t_ns, scan)))

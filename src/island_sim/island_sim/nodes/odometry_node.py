@@ -40,11 +40,11 @@ from island_msgs_py.conversions import (
     NS_PER_S,
     ConversionError,
     check_stamp,
-    pose_to_odometry_cdr,
     twist_stamped_to_command,
 )
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, declare_config, log_ready, run_node
+from island_msgs_py.serialized import pose_to_odometry_cdr
 from island_msgs_py.types import Pose2D
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
@@ -277,7 +277,7 @@ class OdometryNode(Node):
         vel = self.robot.velocity
         c = self.cfg
         base, odom = c.frame_prefix + c.base_frame, c.frame_prefix + c.odom_frame
-        # Serialized here (island_msgs_py.cdr): the same message as fill_odometry, without
+        # Serialized here (island_msgs_py.serialized): the same message as fill_odometry, without
         # building rclpy's message objects at every physics step.
         if self.clock.due(self.clock.steps_per_truth):
             self.truth_pub.publish(pose_to_odometry_cdr(self.robot.true_pose, None, t_ns,

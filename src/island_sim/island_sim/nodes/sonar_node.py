@@ -21,9 +21,7 @@ from typing import Any
 import numpy as np
 from island_msgs_py.conversions import (
     ConversionError,
-    arrays_to_scan,
     check_stamp,
-    odometry_cdr_to_pose,
 )
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.raycast import NearbyRayCaster
@@ -34,6 +32,7 @@ from island_msgs_py.ros_params import (
     log_ready,
     run_node,
 )
+from island_msgs_py.serialized import arrays_to_scan_cdr, odometry_cdr_to_pose
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan, Range
@@ -97,7 +96,7 @@ class SonarNode(Node):
                 self.create_publisher(Range, f"sonar/range_{i}", STREAM_QOS)
                 for i in range(self.model.angles_rad.shape[0])
             ]
-        # raw: the stamp and pose are read from the bytes (island_msgs_py.cdr), 50 times a
+        # raw: the stamp and pose are read from the bytes (island_msgs_py.serialized), 50 times a
         # simulated second, without building the message
         self.create_subscription(Odometry, "ground_truth", self._on_truth, STREAM_QOS, raw=True)
         log_ready(self)
@@ -120,8 +119,11 @@ class SonarNode(Node):
         self._last_period = period
         ranges = self.model.scan(self.caster, pose, self.rng)
         # transducer i is scan index i; bearings increase from first_angle_deg (CCW)
-        scan = arrays_to_scan(ranges, self.model.angles_rad, self.limits_m, t_ns,
-                              self.cfg.frame_prefix + self.cfg.frame_id, self.period_ns * 1e-9)
+        # serialized here (island_msgs_py.serialized): arrays_to_scan's message, without
+        # building rclpy's message objects
+        scan = arrays_to_scan_cdr(ranges, self.model.angles_rad, self.limits_m, t_ns,
+                                  self.cfg.frame_prefix + self.cfg.frame_id,
+                                  self.period_ns * 1e-9)
         self.scan_pub.publish(scan)
         self.scans_published += 1
         fov = math.radians(self.cfg.sonar.beam_width_deg)

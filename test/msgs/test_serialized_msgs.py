@@ -1,5 +1,6 @@
-"""nav_msgs/Odometry read from and written to CDR bytes without rclpy's message objects
-(island_msgs_py.cdr): the same values as rclpy's own (de)serialization, bad bytes refused."""
+"""nav_msgs/Odometry read from and written to CDR bytes, and sensor_msgs/LaserScan read from
+them, without rclpy's message objects (island_msgs_py.serialized, .cdr): the same values as
+rclpy's own (de)serialization and island_msgs_py.conversions, bad bytes refused."""
 
 from __future__ import annotations
 
@@ -11,15 +12,23 @@ import numpy as np
 import pytest
 from island_msgs_py.conversions import (
     ConversionError,
-    odometry_cdr_to_pose,
-    odometry_cdr_to_pose_twist,
+    arrays_to_scan,
     odometry_to_pose,
     pose_to_odometry,
+    scan_to_arrays,
+    time_to_ns,
+)
+from island_msgs_py.serialized import (
+    arrays_to_scan_cdr,
+    odometry_cdr_to_pose,
+    odometry_cdr_to_pose_twist,
     pose_to_odometry_cdr,
+    scan_cdr_to_arrays,
 )
 from island_msgs_py.types import Pose2D
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import LaserScan
 
 from island_msgs_py import cdr
 
@@ -134,3 +143,65 @@ def test_writing_refuses_what_the_message_cannot_hold() -> None:
         pose_to_odometry_cdr(Pose2D(0.0, 0.0, 0.0), None, 2**31 * 10**9, "odom")
     with pytest.raises(ConversionError, match="stamp"):
         pose_to_odometry_cdr(Pose2D(0.0, 0.0, 0.0), None, -1, "odom")
+
+
+def _random_scan(rng: random.Random, n: int) -> LaserScan:
+    m = LaserScan()
+    m.header.frame_id = "robot1/base_link"[:rng.randint(0, 16)]
+    m.header.stamp.sec = rng.randint(0, 2**31 - 1)
+    m.header.stamp.nanosec = rng.randint(0, 10**9 - 1)
+    m.angle_min, m.angle_increment = rng.uniform(-3.2, 3.2), rng.uniform(-0.5, 0.5)
+    m.range_min, m.range_max = rng.uniform(0.0, 0.3), rng.uniform(3.0, 8.0)
+    m.ranges = [rng.choice((math.nan, math.inf, -1.0, 0.1, 9.0, rng.uniform(0.0, 10.0)))
+                for _ in range(n)]
+    m.intensities = [rng.uniform(0, 1) for _ in range(rng.randint(0, 3))]
+    return m
+
+
+def test_a_scan_read_from_its_bytes_is_what_scan_to_arrays_gives() -> None:
+    rng = random.Random(5)
+    for _ in range(300):
+        m = _random_scan(rng, rng.randint(1, 40))
+        data = serialize_message(m)
+        ranges, angles, t_ns = scan_cdr_to_arrays(data)
+        want_r, want_a = scan_to_arrays(deserialize_message(data, LaserScan))  # float32 fields
+        assert np.array_equal(ranges, want_r) and np.array_equal(angles, want_a)
+        assert ranges.dtype == want_r.dtype == np.float64 and t_ns == time_to_ns(m.header.stamp)
+
+
+def test_bad_scan_bytes_are_refused_like_bad_scans() -> None:
+    rng = random.Random(6)
+    data = serialize_message(_random_scan(rng, 16))
+    for n in range(len(data)):  # cut anywhere: header, fields, ranges, intensities
+        with pytest.raises(ConversionError):
+            scan_cdr_to_arrays(data[:n])
+    with pytest.raises(ConversionError, match="no ranges"):
+        scan_cdr_to_arrays(serialize_message(_random_scan(rng, 0)))
+    with pytest.raises(ConversionError, match="limit is 8"):  # refused before reading them
+        scan_cdr_to_arrays(data, max_ranges=8)
+    bad = _random_scan(rng, 4)
+    bad.angle_increment = math.nan
+    with pytest.raises(ConversionError, match="finite"):
+        scan_cdr_to_arrays(serialize_message(bad))
+    with pytest.raises(ConversionError, match="deserialize"):
+        scan_cdr_to_arrays(b"\x00\x0b\x00\x00" + b"\xff" * 7)
+
+
+def test_a_scan_written_as_bytes_is_the_message_arrays_to_scan_builds() -> None:
+    rng = random.Random(8)
+    for _ in range(200):
+        n = rng.randint(1, 24)
+        first, step = rng.uniform(-3.2, 3.2), rng.uniform(-0.4, 0.4)
+        angles = first + step * np.arange(n)
+        ranges = [rng.choice((math.nan, math.inf, -math.inf, rng.uniform(0.0, 7.0)))
+                  for _ in range(n)]
+        args = (ranges, angles, (rng.uniform(0, 0.3), rng.uniform(3, 8)),
+                rng.randint(0, 10**15), "robot1/base_link"[:rng.randint(0, 16)],
+                rng.uniform(0, 0.2))
+        data = arrays_to_scan_cdr(*args)
+        assert deserialize_message(data, LaserScan) == deserialize_message(
+            serialize_message(arrays_to_scan(*args)), LaserScan)  # float32 fields, both ways
+    with pytest.raises(ConversionError, match="evenly spaced"):
+        arrays_to_scan_cdr([1.0, 2.0, 3.0], [0.0, 0.1, 0.5], (0.1, 5.0), 0)
+    with pytest.raises(ConversionError, match="stamp"):
+        arrays_to_scan_cdr([1.0], [0.0], (0.1, 5.0), -5)
