@@ -36,7 +36,7 @@ from island_msgs_py.ros_params import destroy_nodes, ensure_ros_env
 from island_msgs_py.serialized import odometry_cdr_to_pose
 from island_msgs_py.types import FloatArray
 from island_sim.core.hall_follower_config import HallFollowerConfig
-from island_sim.core.robot import SimLoopConfig
+from island_sim.core.sim_loop import SimLoopConfig
 from island_sim.nodes.hall_follower_node import HallFollowerNode
 from island_sim.nodes.odometry_node import OdometryNode
 from island_sim.nodes.sonar_node import SonarNode

@@ -38,7 +38,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import LaserScan, Range
 
 from island_sim.conversions import range_msg
-from island_sim.core.robot import SimLoopConfig
+from island_sim.core.sim_loop import SimLoopConfig
 from island_sim.core.sonar import SonarConfig, SonarModel
 from island_sim.core.world_loader import load_world
 
