@@ -5,8 +5,11 @@ Subscribes  cmd_vel         geometry_msgs/TwistStamped, stamped with the sensor 
                             warning, counted; a command older than one already applied is stale
                             and ignored; stamp 0 = "now", for hand-typed commands)
 Publishes   odom            nav_msgs/Odometry  odom -> base_link, drifting pose + its covariance
-            ground_truth    nav_msgs/Odometry  map -> base_link, the true pose (evaluation only)
-            /clock          rosgraph_msgs/Clock when sim.own_clock
+                            (sim.publish_rate_hz)
+            ground_truth    nav_msgs/Odometry  map -> base_link, the true pose (evaluation only;
+                            sim.truth_rate_hz)
+            /clock          rosgraph_msgs/Clock when sim.own_clock (sim.clock_rate_hz)
+Both Odometry topics are written as CDR bytes (island_msgs_py.serialized): the same message.
 Names are relative (`--ros-args -r __ns:=/robot1` moves the robot's topics) but for /clock,
 which is where every sim-time node's time source listens. `frame_prefix` (e.g. `robot1/`)
 prefixes the robot's frames (odom_frame, base_frame), not the shared world frame map_frame.
@@ -21,7 +24,7 @@ on, so controllers always act on the newest scan whatever the DDS timing; after
 `sim.lockstep_timeout_s` of wall time without one, it logs and steps on with the last command.
 Waiting by stamp, not by counting messages: when two controllers answer one scan (the hall
 follower and the island builder at a hand-over) a count would run ahead for good and every later
-command would act a period late; a stamp cannot (`island_sim.core.robot.CommandGate`). A
+command would act a period late; a stamp cannot (`island_sim.core.sim_loop.CommandGate`). A
 paused hall follower publishes nothing, so in lockstep whoever drives the robot meanwhile must
 answer every scan, or each period waits for the timeout.
 """
@@ -51,15 +54,8 @@ from rclpy.node import Node
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
-from island_sim.core.robot import (
-    CommandGate,
-    OdometryConfig,
-    RealTimePacer,
-    RobotConfig,
-    SimClock,
-    SimLoopConfig,
-    SimRobot,
-)
+from island_sim.core.robot import OdometryConfig, RobotConfig, SimRobot
+from island_sim.core.sim_loop import CommandGate, RealTimePacer, SimClock, SimLoopConfig
 from island_sim.core.world_loader import load_world
 
 NODE_NAME = "odometry_node"
