@@ -20,7 +20,7 @@ PACKAGES = ("island_msgs_py", "island_sim", "island_mapping")
 
 
 # island_msgs_py's message-facing modules (they use rclpy); every other module is ROS-free.
-MSGS_MESSAGE_FACING = ("conversions", "qos", "ros_params", "scan_inputs")
+MSGS_MESSAGE_FACING = ("conversions", "qos", "ros_params", "scan_inputs", "serialized")
 
 
 def _modules_under(pkg: str, sub: str) -> list[str]:

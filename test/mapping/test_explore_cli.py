@@ -62,6 +62,11 @@ def test_explore_writes_the_map_figures_recording_and_summary(
     assert {"/odom", "/ground_truth", "/sonar/scan", "/cmd_vel", "/clock",
             "/island_builder/events"} <= set(reader.topics)
     assert reader.topics["/sonar/scan"].message_count >= 1400  # 10 Hz for 150 s
+    # Lockstep: /odom at every 50 Hz step (eq. 3 integrates each), /clock and /ground_truth
+    # only at the 10 Hz sensor instants (nothing reads them in between).
+    counts = {t: reader.topics[t].message_count for t in ("/odom", "/ground_truth", "/clock")}
+    assert counts["/odom"] == 5 * (counts["/ground_truth"] - 1) + 1, counts
+    assert counts["/clock"] == counts["/ground_truth"] == 1501, counts
     assert 140.0 <= reader.duration_ns * 1e-9 <= 151.0
     assert "results in" in capsys.readouterr().out
     # The map measured against the world's places, in the summary and by `islands evaluate`.

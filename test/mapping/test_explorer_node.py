@@ -141,12 +141,14 @@ def test_the_explorer_answers_only_when_it_drives_or_nobody_else_does(
         # Handed over: the follower or the builder answers; the explorer stays silent.
         silent += [step(CommandMode.FOLLOW) for _ in range(3)] + [step(CommandMode.DRIVE)]
         assert statuses[-1]["state"] == "handed_over" and not statuses[-1]["done"]
+        assert not explorer.done_future.done()
         # Back at island 0 with nothing new: the exit is blocked (in the map) and the explorer
         # is done; it holds the robot still.
         answered += [step(CommandMode.IDLE, _handed_back(k + 1)), step(CommandMode.IDLE)]
         assert spin(ex, lambda: bool(world.map_items), 5.0)
         assert world.map_items == [ExitUpdate(0, 0, ExitState.BLOCKED)]
         assert explorer.done and statuses[-1]["done"] and statuses[-1]["exits_left"] == 1
+        assert explorer.done_future.done()  # what `islands explore` spins until
         assert sorted(world.answers) == sorted(answered)  # one answer each, none elsewhere
         assert not set(silent) & set(world.answers)
         assert explorer.bad_msg_count == 0

@@ -12,11 +12,11 @@ from island_sim.core.robot import (
     OdometryConfig,
     RobotConfig,
     RobotError,
-    SimLoopConfig,
     SimRobot,
     arc_update,
     epsilon_from_covariance,
 )
+from island_sim.core.sim_loop import SimLoopConfig
 from island_sim.core.world import World
 
 FAST = RobotConfig(max_linear_accel_mps2=100.0, max_angular_accel_radps2=100.0)
@@ -182,7 +182,7 @@ def test_bad_step_arguments_are_rejected() -> None:
 
 
 def test_real_time_pacer_keeps_sim_time_at_the_factor_and_never_bursts() -> None:
-    from island_sim.core.robot import RealTimePacer, RobotError
+    from island_sim.core.sim_loop import RealTimePacer
 
     pacer = RealTimePacer(real_time_factor=2.0, dt_ns=20_000_000, max_steps=50)  # 50 Hz, 2x
     steps = 0
@@ -199,7 +199,7 @@ def test_real_time_pacer_keeps_sim_time_at_the_factor_and_never_bursts() -> None
 
 
 def test_command_gate_waits_by_stamp_and_duplicate_answers_do_not_run_it_ahead() -> None:
-    from island_sim.core.robot import CommandGate, RobotError
+    from island_sim.core.sim_loop import CommandGate
 
     period = 100_000_000  # 10 Hz sensor boundaries [ns]
     gate = CommandGate(lockstep=True, cmd_timeout_ns=500_000_000)
@@ -225,7 +225,7 @@ def test_command_gate_waits_by_stamp_and_duplicate_answers_do_not_run_it_ahead()
 
 
 def test_sim_clock_publishes_every_step_and_marks_sensor_boundaries_and_the_end() -> None:
-    from island_sim.core.robot import SimClock, SimLoopConfig
+    from island_sim.core.sim_loop import SimClock
 
     clock = SimClock(SimLoopConfig(stop_after_s=0.2))  # 50 Hz physics, 10 Hz sensor
     assert clock.at_boundary and clock.sim_time_ns == 0 and not clock.finished
@@ -238,3 +238,25 @@ def test_sim_clock_publishes_every_step_and_marks_sensor_boundaries_and_the_end(
                          for k in range(10)]
     assert [k + 1 for k, b in enumerate(boundaries) if b] == [5, 10]  # every 0.1 s
     assert not SimClock(SimLoopConfig(stop_after_s=0.0)).finished  # 0 = run forever
+
+
+def test_truth_and_clock_rates_divide_the_publish_rate_and_follow_the_sensor() -> None:
+    from island_sim.core.sim_loop import SimClock
+
+    cfg = SimLoopConfig(truth_rate_hz=10.0, clock_rate_hz=25.0, sensor_rate_hz=5.0,
+                        stop_after_s=0.4)
+    assert (cfg.steps_per_truth, cfg.steps_per_clock) == (5, 2)
+    clock = SimClock(cfg)
+    due = []
+    while not clock.finished:
+        clock.advance()
+        due.append((clock.due(clock.steps_per_truth), clock.due(clock.steps_per_clock)))
+    assert [k + 1 for k, (t, _) in enumerate(due) if t] == [5, 10, 15, 20]  # every 0.1 s
+    assert [k + 1 for k, (_, c) in enumerate(due) if c] == list(range(2, 21, 2))
+    for bad in ({"truth_rate_hz": 15.0}, {"clock_rate_hz": 100.0}, {"truth_rate_hz": 5.0},
+                {"clock_rate_hz": -10.0}):
+        name = next(iter(bad))
+        with pytest.raises(RobotError, match=name):
+            SimLoopConfig(**bad)  # not dividing 50, above /odom's 50, below the 10 Hz sensor
+    same = SimLoopConfig(publish_rate_hz=10.0)  # 0 (the default): at the rate of /odom
+    assert same.steps_per_truth == same.steps_per_clock == same.steps_per_publish == 5

@@ -17,6 +17,7 @@ from geometry_msgs.msg import TwistStamped
 from island_msgs_py.conversions import (
     command_to_twist_stamped,
     ns_to_time,
+    odometry_to_pose,
     pose_to_odometry,
     time_to_ns,
 )
@@ -30,6 +31,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan, Range
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
@@ -267,6 +269,51 @@ def test_lockstep_waits_by_stamp_when_two_controllers_answer_one_scan(ros_contex
         assert sim.odo.lockstep_timeouts == 0
     finally:
         sim.close()
+
+
+def test_ground_truth_and_clock_at_their_own_rates_odometry_at_every_step(
+        ros_context: Any) -> None:
+    """What `islands explore` runs: /odom at every 50 Hz step (the builder integrates each),
+    /ground_truth and /clock at the 10 Hz sensor instants only; the serialized /odom the node
+    publishes reads back as the robot's pose and covariance."""
+    odo = OdometryNode(context=ros_context, parameter_overrides=[
+        _p("world", "paper_fig4"), _p("sim.real_time_factor", 0.0), _p("sim.stop_after_s", 1.0),
+        _p("sim.truth_rate_hz", 10.0), _p("sim.clock_rate_hz", 10.0)])
+    probe = Node("rate_probe", context=ros_context)
+    got: dict[str, list[int]] = {"odom": [], "truth": [], "clock": []}
+    last: list[Odometry] = []
+
+    def on_odom(msg: Odometry) -> None:
+        got["odom"].append(time_to_ns(msg.header.stamp))
+        last[:] = [msg]
+
+    deep = QoSProfile(depth=1000)
+    probe.create_subscription(Odometry, "/odom", on_odom, deep)
+    probe.create_subscription(Odometry, "/ground_truth",
+                              lambda m: got["truth"].append(time_to_ns(m.header.stamp)), deep)
+    probe.create_subscription(Clock, "/clock", lambda m: got["clock"].append(
+        time_to_ns(m.clock)), deep)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(probe)
+    try:
+        deadline = time.monotonic() + 5.0
+        while odo.odom_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+            ex.spin_once(timeout_sec=0.05)
+        ex.add_node(odo)
+        deadline = time.monotonic() + 20.0
+        while (len(got["odom"]) < 50 or len(got["clock"]) < 10) and time.monotonic() < deadline:
+            ex.spin_once(timeout_sec=0.05)
+        assert got["odom"] == [k * 20_000_000 for k in range(1, 51)]  # not locked: from step 1
+        assert got["truth"] == got["clock"] == [k * 100_000_000 for k in range(1, 11)]
+        assert odo.finished_future.done() and odo.finished_future.result() == 10**9
+        pose, cov, _ = odometry_to_pose(last[0])
+        assert pose == odo.robot.odom_pose
+        assert np.array_equal(cov, odo.robot.odom_covariance)
+        assert last[0].header.frame_id == "odom" and last[0].child_frame_id == "base_link"
+    finally:
+        ex.shutdown()
+        odo.destroy_node()
+        probe.destroy_node()
 
 
 def test_sonar_scans_once_per_period_at_the_ground_truth_stamp(ros_context: Any) -> None:

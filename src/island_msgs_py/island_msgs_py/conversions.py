@@ -100,13 +100,19 @@ def yaw_to_quaternion(theta_rad: float) -> Quaternion:
 
 def quaternion_to_yaw(q: Quaternion) -> float:
     """Yaw [rad] in (-pi, pi] of a quaternion (normalized first; roll/pitch are ignored)."""
-    vals = (q.x, q.y, q.z, q.w)
-    if not all(math.isfinite(v) for v in vals):
-        raise IslandTypeError(f"quaternion has a NaN or infinite component: {vals}")
-    norm = math.sqrt(sum(v * v for v in vals))
+    return quaternion_components_to_yaw(q.x, q.y, q.z, q.w)
+
+
+def quaternion_components_to_yaw(qx: float, qy: float, qz: float, qw: float) -> float:
+    """quaternion_to_yaw of the components (x, y, z, w) [-]."""
+    if not (math.isfinite(qx) and math.isfinite(qy) and math.isfinite(qz)
+            and math.isfinite(qw)):
+        raise IslandTypeError(
+            f"quaternion has a NaN or infinite component: {(qx, qy, qz, qw)}")
+    norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
     if norm < 1e-9:
         raise IslandTypeError("quaternion has zero length")
-    x, y, z, w = (v / norm for v in vals)
+    x, y, z, w = qx / norm, qy / norm, qz / norm, qw / norm
     yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     return math.pi if yaw == -math.pi else yaw
 
@@ -375,6 +381,26 @@ def arrays_to_scan(
     scan_time_s: float = 0.0,
 ) -> LaserScan:
     """LaserScan of ranges (N,) [m] at evenly spaced bearings (N,) [rad]; inf = no echo."""
+    r, (angle_min, angle_max, inc) = scan_grid(ranges_m, angles_rad)
+    lo, hi = range_limits_m
+    msg = LaserScan()
+    msg.header.stamp = ns_to_time(t_ns)
+    msg.header.frame_id = frame_id
+    msg.angle_min = angle_min
+    msg.angle_max = angle_max
+    msg.angle_increment = inc
+    msg.time_increment = 0.0
+    msg.scan_time = float(scan_time_s)
+    msg.range_min = float(lo)
+    msg.range_max = float(hi)
+    msg.ranges = r.tolist()
+    return msg
+
+
+def scan_grid(ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike
+              ) -> tuple[FloatArray, tuple[float, float, float]]:
+    """The ranges (N,) [m] of a LaserScan (inf where not finite) and its (angle_min,
+    angle_max, angle_increment) [rad]; ConversionError unless the bearings are evenly spaced."""
     r = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
     a = np.asarray(angles_rad, dtype=np.float64).reshape(-1)
     if r.shape != a.shape or r.size == 0:
@@ -382,39 +408,39 @@ def arrays_to_scan(
     inc = float(a[1] - a[0]) if a.size > 1 else 0.0
     if a.size > 1 and not np.allclose(np.diff(a), inc, atol=_ANGLE_GRID_TOL_RAD):
         raise ConversionError("scan: bearings must be evenly spaced for a LaserScan")
-    lo, hi = range_limits_m
-    msg = LaserScan()
-    msg.header.stamp = ns_to_time(t_ns)
-    msg.header.frame_id = frame_id
-    msg.angle_min = float(a[0])
-    msg.angle_max = float(a[-1])
-    msg.angle_increment = inc
-    msg.time_increment = 0.0
-    msg.scan_time = float(scan_time_s)
-    msg.range_min = float(lo)
-    msg.range_max = float(hi)
-    msg.ranges = [float(v) if math.isfinite(v) else math.inf for v in r]
-    return msg
+    return np.where(np.isfinite(r), r, np.inf), (float(a[0]), float(a[-1]), inc)
 
 
 def scan_to_arrays(msg: LaserScan, max_ranges: int = MAX_SCAN_RANGES
                    ) -> tuple[FloatArray, FloatArray]:
     """(ranges (N,) [m], bearings (N,) [rad]); NaN and out-of-limit readings become inf. A scan
     of more than `max_ranges` ranges is refused before any work on it."""
-    if len(msg.ranges) > max_ranges:
+    check_scan_count(len(msg.ranges), max_ranges)
+    return scan_arrays(np.asarray(msg.ranges, dtype=np.float64), msg.angle_min,
+                        msg.angle_increment, msg.range_min, msg.range_max)
+
+
+def check_scan_count(n: int, max_ranges: int) -> None:
+    """ConversionError for a scan of more than `max_ranges` ranges (before any work on it)."""
+    if n > max_ranges:
         raise ConversionError(
-            f"scan: ranges has {len(msg.ranges)} values (the limit is {max_ranges}, more than "
-            "any sensor of the project produces)")
-    r = np.asarray(msg.ranges, dtype=np.float64)
+            f"scan: ranges has {n} values (the limit is {max_ranges}, more than any sensor of "
+            "the project produces)")
+
+
+def scan_arrays(r: FloatArray, angle_min: float, angle_increment: float, range_min: float,
+                 range_max: float) -> tuple[FloatArray, FloatArray]:
+    """scan_to_arrays of a LaserScan's fields: ranges (N,) [m] as float64, the angles [rad] and
+    limits [m] as rclpy gives them."""
     if r.size == 0:
         raise ConversionError("scan: no ranges")
-    if not (math.isfinite(msg.angle_min) and math.isfinite(msg.angle_increment)):
+    if not (math.isfinite(angle_min) and math.isfinite(angle_increment)):
         raise ConversionError(
-            f"scan: angle_min/angle_increment must be finite, got {msg.angle_min}, "
-            f"{msg.angle_increment}"
+            f"scan: angle_min/angle_increment must be finite, got {angle_min}, "
+            f"{angle_increment}"
         )
-    a = msg.angle_min + msg.angle_increment * np.arange(r.size, dtype=np.float64)
-    ok = np.isfinite(r) & (r >= msg.range_min) & (r <= msg.range_max)
+    a = angle_min + angle_increment * np.arange(r.size, dtype=np.float64)
+    ok = np.isfinite(r) & (r >= range_min) & (r <= range_max)
     return np.where(ok, r, np.inf), a
 
 

@@ -14,15 +14,10 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 
-from island_msgs_py.conversions import (
-    ConversionError,
-    check_stamp,
-    odometry_to_pose,
-    scan_to_arrays,
-    time_to_ns,
-)
+from island_msgs_py.conversions import ConversionError, check_stamp
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import clock_ns
+from island_msgs_py.serialized import odometry_cdr_to_pose, scan_cdr_to_arrays
 from island_msgs_py.stamps import Paired, ScanOdomPairer, paired_only
 from island_msgs_py.types import FloatArray
 
@@ -40,19 +35,19 @@ def subscribe_paired_scans(
     (for its counters)."""
     pairer: ScanOdomPairer[ScanArrays] = ScanOdomPairer(max_buffer)
 
-    def on_odom(msg: Odometry) -> None:
+    def on_odom(data: bytes) -> None:
         try:
-            pose, _, t_ns = odometry_to_pose(msg)
+            pose, _, t_ns = odometry_cdr_to_pose(data)
             check_stamp(t_ns, clock_ns(node), "/odom")
         except ConversionError as exc:
             warn("odom", exc)
             return
         handle(paired_only(pairer.odometry(t_ns, pose)))
 
-    def on_scan(msg: LaserScan) -> None:
+    def on_scan(data: bytes) -> None:
         try:
-            scan = scan_to_arrays(msg)
-            t_ns = time_to_ns(msg.header.stamp)
+            ranges, angles, t_ns = scan_cdr_to_arrays(data)
+            scan = (ranges, angles)
             check_stamp(t_ns, clock_ns(node), "/sonar/scan")
         except ConversionError as exc:
             warn("sonar/scan", exc)
@@ -62,6 +57,7 @@ def subscribe_paired_scans(
         if pairer.dropped_scans > dropped:
             warn("sonar/scan", ValueError("no odometry at or after a scan's stamp"))
 
-    node.create_subscription(Odometry, "odom", on_odom, STREAM_QOS)
-    node.create_subscription(LaserScan, "sonar/scan", on_scan, STREAM_QOS)
+    # raw: both read from the bytes (island_msgs_py.serialized), without building the messages
+    node.create_subscription(Odometry, "odom", on_odom, STREAM_QOS, raw=True)
+    node.create_subscription(LaserScan, "sonar/scan", on_scan, STREAM_QOS, raw=True)
     return pairer

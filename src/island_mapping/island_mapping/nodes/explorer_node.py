@@ -36,14 +36,12 @@ from island_msgs_py.conversions import (
     ConversionError,
     check_stamp,
     command_to_twist_stamped,
-    odometry_to_pose,
-    scan_to_arrays,
-    time_to_ns,
 )
 from island_msgs_py.hall_perception import HallPerceptionConfig
 from island_msgs_py.json_io import GraphFormatError
 from island_msgs_py.qos import LATCHED, STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, clock_ns, declare_config, log_ready, run_node
+from island_msgs_py.serialized import odometry_cdr_to_pose_twist, scan_cdr_to_arrays
 from island_msgs_py.stamps import Paired, ScanOdomPairer, StampJoin, paired_only
 from island_msgs_py.types import ControlStrategy, ExitUpdate, FloatArray, IslandTypeError, NewExit
 from nav_msgs.msg import Odometry
@@ -51,6 +49,7 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import String
 
@@ -135,6 +134,8 @@ class ExplorerNode(Node):
         self.add_cli = self.create_client(SetParameters, "topo_graph/add")
         self.exploring = False
         """Subscribed (once the services are up, see wait_for_services)."""
+        self.done_future = Future()
+        """Done in the callback in which the explorer first says it is done (`done`)."""
         self._publish_status()
         if c.wait_for_services:
             self.get_logger().info(f"waiting for {self.builder_cli.service_name} and "
@@ -162,8 +163,9 @@ class ExplorerNode(Node):
 
     def _start(self) -> None:
         self.exploring = True
-        self.create_subscription(Odometry, "odom", self._on_odom, STREAM_QOS)
-        self.create_subscription(LaserScan, "sonar/scan", self._on_scan, STREAM_QOS)
+        # raw: both read from the bytes (island_msgs_py.serialized), without building them
+        self.create_subscription(Odometry, "odom", self._on_odom, STREAM_QOS, raw=True)
+        self.create_subscription(LaserScan, "sonar/scan", self._on_scan, STREAM_QOS, raw=True)
         self.create_subscription(String, "island_builder/decision", self._on_decision,
                                  DECISION_QOS)
         self.create_subscription(String, "topo_graph/json", self._on_graph, LATCHED)
@@ -172,21 +174,20 @@ class ExplorerNode(Node):
         log_ready(self)
 
     # --- inputs --------------------------------------------------------------------------------
-    def _on_odom(self, msg: Odometry) -> None:
+    def _on_odom(self, data: bytes) -> None:
         try:
-            pose, _, t_ns = odometry_to_pose(msg)
+            pose, _, t_ns, (v, w) = odometry_cdr_to_pose_twist(data)
             check_stamp(t_ns, clock_ns(self), "odom")
         except ConversionError as exc:
             self._warn("odom", exc)
             return
-        self._twists.append((t_ns, float(msg.twist.twist.linear.x),
-                             float(msg.twist.twist.angular.z)))
+        self._twists.append((t_ns, v, w))
         self._paired(paired_only(self._pairer.odometry(t_ns, pose)))
 
-    def _on_scan(self, msg: LaserScan) -> None:
+    def _on_scan(self, data: bytes) -> None:
         try:
-            scan = scan_to_arrays(msg)
-            t_ns = time_to_ns(msg.header.stamp)
+            ranges, angles, t_ns = scan_cdr_to_arrays(data)
+            scan = (ranges, angles)
             check_stamp(t_ns, clock_ns(self), "sonar/scan")
         except ConversionError as exc:
             self._warn("sonar/scan", exc)
@@ -213,6 +214,7 @@ class ExplorerNode(Node):
             self.explorer.on_graph(TopoGraph.from_json(msg.data))
         except (GraphFormatError, GraphError, IslandTypeError) as exc:
             self._warn("topo_graph/json", exc)
+        self._note_done()
 
     def _on_progress(self, msg: String) -> None:
         try:
@@ -245,6 +247,11 @@ class ExplorerNode(Node):
             self.cmd_pub.publish(command_to_twist_stamped(v, w, t_ns, self._base_frame))
             self.scans_answered += 1
         self._publish_status()
+        self._note_done()
+
+    def _note_done(self) -> None:
+        if self.explorer.done and not self.done_future.done():
+            self.done_future.set_result(True)
 
     # --- outputs -------------------------------------------------------------------------------
     def _send(self, requests: tuple[mcv.ExplorerRequest | ExitUpdate | NewExit, ...]) -> None:

@@ -48,9 +48,6 @@ from island_msgs_py.conversions import (
     ConversionError,
     check_stamp,
     command_to_twist_stamped,
-    odometry_to_pose,
-    scan_to_arrays,
-    time_to_ns,
 )
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import (
@@ -60,6 +57,7 @@ from island_msgs_py.ros_params import (
     log_ready,
     run_node,
 )
+from island_msgs_py.serialized import odometry_cdr_to_pose, scan_cdr_to_arrays
 from island_msgs_py.stamps import ScanOdomPairer
 from island_msgs_py.types import ControlStrategy, IslandTypeError
 from nav_msgs.msg import Odometry
@@ -170,9 +168,10 @@ class IslandBuilderNode(Node):
 
     def _start_mapping(self) -> None:
         self.mapping = True
-        self.create_subscription(Odometry, "odom", self._on_odom, STREAM_QOS)
-        self.create_subscription(Odometry, "ground_truth", self._on_truth, STREAM_QOS)
-        self.create_subscription(LaserScan, "sonar/scan", self._on_scan, STREAM_QOS)
+        # raw: read from the bytes (island_msgs_py.serialized), without building the messages
+        self.create_subscription(Odometry, "odom", self._on_odom, STREAM_QOS, raw=True)
+        self.create_subscription(Odometry, "ground_truth", self._on_truth, STREAM_QOS, raw=True)
+        self.create_subscription(LaserScan, "sonar/scan", self._on_scan, STREAM_QOS, raw=True)
         self.create_subscription(String, "hall_follower/progress", self._on_strategy,
                                  PROGRESS_QOS)
         log_ready(self)
@@ -184,18 +183,18 @@ class IslandBuilderNode(Node):
 
     # --- inputs: each scan meets the odometry and ground truth of its stamp, after every
     # odometry increment up to it (island_msgs_py.stamps.ScanOdomPairer, every_odometry) -----
-    def _on_odom(self, msg: Odometry) -> None:
+    def _on_odom(self, data: bytes) -> None:
         try:
-            pose, cov, t_ns = odometry_to_pose(msg)
+            pose, cov, t_ns = odometry_cdr_to_pose(data)
             check_stamp(t_ns, clock_ns(self), "odom")
             released = self.pairer.odometry(t_ns, pose, checked_cov(t_ns * 1e-9, cov))
             self._act(feed(self.builder, released))
         except (ConversionError, ValueError) as exc:
             self._warn("odom", exc)
 
-    def _on_truth(self, msg: Odometry) -> None:
+    def _on_truth(self, data: bytes) -> None:
         try:
-            pose, _, t_ns = odometry_to_pose(msg)
+            pose, _, t_ns = odometry_cdr_to_pose(data)
             check_stamp(t_ns, clock_ns(self), "ground_truth")
             self._act(feed(self.builder, self.pairer.stream(GROUND_TRUTH, t_ns, pose)))
         except (ConversionError, ValueError) as exc:
@@ -207,10 +206,9 @@ class IslandBuilderNode(Node):
         except IslandTypeError as exc:
             self._warn("hall_follower/progress", exc)
 
-    def _on_scan(self, msg: LaserScan) -> None:
+    def _on_scan(self, data: bytes) -> None:
         try:
-            ranges, angles = scan_to_arrays(msg)
-            t_ns = time_to_ns(msg.header.stamp)
+            ranges, angles, t_ns = scan_cdr_to_arrays(data)
             check_stamp(t_ns, clock_ns(self), "sonar/scan")
             scan = checked_scan(t_ns * 1e-9, ranges, angles)
             self._act(feed(self.builder, self.pairer.scan(t_ns, scan)))

@@ -5,8 +5,11 @@ Subscribes  cmd_vel         geometry_msgs/TwistStamped, stamped with the sensor 
                             warning, counted; a command older than one already applied is stale
                             and ignored; stamp 0 = "now", for hand-typed commands)
 Publishes   odom            nav_msgs/Odometry  odom -> base_link, drifting pose + its covariance
-            ground_truth    nav_msgs/Odometry  map -> base_link, the true pose (evaluation only)
-            /clock          rosgraph_msgs/Clock when sim.own_clock
+                            (sim.publish_rate_hz)
+            ground_truth    nav_msgs/Odometry  map -> base_link, the true pose (evaluation only;
+                            sim.truth_rate_hz)
+            /clock          rosgraph_msgs/Clock when sim.own_clock (sim.clock_rate_hz)
+Both Odometry topics are written as CDR bytes (island_msgs_py.serialized): the same message.
 Names are relative (`--ros-args -r __ns:=/robot1` moves the robot's topics) but for /clock,
 which is where every sim-time node's time source listens. `frame_prefix` (e.g. `robot1/`)
 prefixes the robot's frames (odom_frame, base_frame), not the shared world frame map_frame.
@@ -21,7 +24,7 @@ on, so controllers always act on the newest scan whatever the DDS timing; after
 `sim.lockstep_timeout_s` of wall time without one, it logs and steps on with the last command.
 Waiting by stamp, not by counting messages: when two controllers answer one scan (the hall
 follower and the island builder at a hand-over) a count would run ahead for good and every later
-command would act a period late; a stamp cannot (`island_sim.core.robot.CommandGate`). A
+command would act a period late; a stamp cannot (`island_sim.core.sim_loop.CommandGate`). A
 paused hall follower publishes nothing, so in lockstep whoever drives the robot meanwhile must
 answer every scan, or each period waits for the timeout.
 """
@@ -40,25 +43,19 @@ from island_msgs_py.conversions import (
     NS_PER_S,
     ConversionError,
     check_stamp,
-    fill_odometry,
     twist_stamped_to_command,
 )
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.ros_params import BadMessageLog, declare_config, log_ready, run_node
+from island_msgs_py.serialized import pose_to_odometry_cdr
 from island_msgs_py.types import Pose2D
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
+from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
-from island_sim.core.robot import (
-    CommandGate,
-    OdometryConfig,
-    RealTimePacer,
-    RobotConfig,
-    SimClock,
-    SimLoopConfig,
-    SimRobot,
-)
+from island_sim.core.robot import OdometryConfig, RobotConfig, SimRobot
+from island_sim.core.sim_loop import CommandGate, RealTimePacer, SimClock, SimLoopConfig
 from island_sim.core.world_loader import load_world
 
 NODE_NAME = "odometry_node"
@@ -123,12 +120,13 @@ class OdometryNode(Node):
         self.robot = SimRobot(self.world, start, np.random.default_rng(self.cfg.seed),
                               self.cfg.robot, self.cfg.odometry)
         self.clock = SimClock(sim)
-        self._truth_msg = Odometry()  # reused: publishing copies, building costs ~0.2 ms
-        self._odom_msg = Odometry()
         self._clock_msg = Clock()
         self.gate = CommandGate(sim.lockstep, round(sim.cmd_timeout_s * 1e9))
         self._warn = BadMessageLog(self)
         self.lockstep_timeouts = 0
+        self.finished_future = Future()
+        """Done (with the sim time [ns]) at the step that reaches `sim.stop_after_s`: an
+        executor can spin until it, e.g. `spin_until_future_complete`."""
         self._wait_since = 0.0
         self._started = not sim.lockstep
         self._created = time.monotonic()
@@ -239,6 +237,8 @@ class OdometryNode(Node):
             self.robot.step(v, w, self.clock.dt_ns * 1e-9)
             if self.clock.advance():
                 self._publish()
+            if self.clock.finished and not self.finished_future.done():
+                self.finished_future.set_result(self.clock.sim_time_ns)
             if self._boundary_wait():
                 return
 
@@ -266,17 +266,21 @@ class OdometryNode(Node):
 
     def _publish(self) -> None:
         t_ns = self.sim_time_ns
-        if self.clock_pub is not None:
+        if self.clock_pub is not None and self.clock.due(self.clock.steps_per_clock):
             self._clock_msg.clock.sec = int(t_ns // NS_PER_S)
             self._clock_msg.clock.nanosec = int(t_ns % NS_PER_S)
             self.clock_pub.publish(self._clock_msg)
         vel = self.robot.velocity
         c = self.cfg
         base, odom = c.frame_prefix + c.base_frame, c.frame_prefix + c.odom_frame
-        self.truth_pub.publish(fill_odometry(self._truth_msg, self.robot.true_pose, None, t_ns,
-                                             c.map_frame, base, vel))
-        self.odom_pub.publish(fill_odometry(self._odom_msg, self.robot.odom_pose,
-                                            self.robot.odom_covariance, t_ns, odom, base, vel))
+        # Serialized here (island_msgs_py.serialized): the same message as fill_odometry, without
+        # building rclpy's message objects at every physics step.
+        if self.clock.due(self.clock.steps_per_truth):
+            self.truth_pub.publish(pose_to_odometry_cdr(self.robot.true_pose, None, t_ns,
+                                                        c.map_frame, base, vel))
+        self.odom_pub.publish(pose_to_odometry_cdr(self.robot.odom_pose,
+                                                   self.robot.odom_covariance, t_ns, odom, base,
+                                                   vel))
 
 
 def main(args: Sequence[str] | None = None) -> int:

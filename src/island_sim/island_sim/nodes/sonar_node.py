@@ -21,9 +21,7 @@ from typing import Any
 import numpy as np
 from island_msgs_py.conversions import (
     ConversionError,
-    arrays_to_scan,
     check_stamp,
-    odometry_to_pose,
 )
 from island_msgs_py.qos import STREAM_QOS
 from island_msgs_py.raycast import NearbyRayCaster
@@ -34,12 +32,13 @@ from island_msgs_py.ros_params import (
     log_ready,
     run_node,
 )
+from island_msgs_py.serialized import arrays_to_scan_cdr, odometry_cdr_to_pose
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan, Range
 
 from island_sim.conversions import range_msg
-from island_sim.core.robot import SimLoopConfig
+from island_sim.core.sim_loop import SimLoopConfig
 from island_sim.core.sonar import SonarConfig, SonarModel
 from island_sim.core.world_loader import load_world
 
@@ -97,7 +96,9 @@ class SonarNode(Node):
                 self.create_publisher(Range, f"sonar/range_{i}", STREAM_QOS)
                 for i in range(self.model.angles_rad.shape[0])
             ]
-        self.create_subscription(Odometry, "ground_truth", self._on_truth, STREAM_QOS)
+        # raw: the stamp and pose are read from the bytes (island_msgs_py.serialized), 50 times a
+        # simulated second, without building the message
+        self.create_subscription(Odometry, "ground_truth", self._on_truth, STREAM_QOS, raw=True)
         log_ready(self)
 
     @property
@@ -105,9 +106,9 @@ class SonarNode(Node):
         """Messages ignored as bad so far."""
         return self._warn.count
 
-    def _on_truth(self, msg: Odometry) -> None:
+    def _on_truth(self, data: bytes) -> None:
         try:
-            pose, _, t_ns = odometry_to_pose(msg)
+            pose, _, t_ns = odometry_cdr_to_pose(data)
             check_stamp(t_ns, clock_ns(self), "ground_truth")
         except ConversionError as exc:
             self._warn("ground_truth", exc)
@@ -118,8 +119,11 @@ class SonarNode(Node):
         self._last_period = period
         ranges = self.model.scan(self.caster, pose, self.rng)
         # transducer i is scan index i; bearings increase from first_angle_deg (CCW)
-        scan = arrays_to_scan(ranges, self.model.angles_rad, self.limits_m, t_ns,
-                              self.cfg.frame_prefix + self.cfg.frame_id, self.period_ns * 1e-9)
+        # serialized here (island_msgs_py.serialized): arrays_to_scan's message, without
+        # building rclpy's message objects
+        scan = arrays_to_scan_cdr(ranges, self.model.angles_rad, self.limits_m, t_ns,
+                                  self.cfg.frame_prefix + self.cfg.frame_id,
+                                  self.period_ns * 1e-9)
         self.scan_pub.publish(scan)
         self.scans_published += 1
         fov = math.radians(self.cfg.sonar.beam_width_deg)
