@@ -43,6 +43,8 @@ from island_mapping.core.route import (
     RouteTimeoutError,
     execute_strategy,
     go_along_hall,
+    go_to,
+    rotate_by,
     rotate_to,
 )
 
@@ -208,7 +210,7 @@ def side_departure(d: Drive, ex: Exit, origin_theta: float, cfg: ExplorerConfig
     way, cut = (ex.prefix, 0.0) if near else approach(ex.prefix, cfg.side_search_m)
     try:
         yield from rotate_to(d, origin_theta)
-        yield from execute_strategy(d, way)
+        yield from (drive_straight(d, way) if near else execute_strategy(d, way))
         if not near and not (yield from seek_side(d, ex.side, cut + cfg.side_search_m,
                                                   0.5 * min(ex.width_m, 2.0))):
             return False
@@ -224,6 +226,18 @@ def side_departure(d: Drive, ex: Exit, origin_theta: float, cfg: ExplorerConfig
     except RouteTimeoutError:
         return False
     return True
+
+
+def drive_straight(d: Drive, strategy: ControlStrategy) -> Generator[Command, None, None]:
+    """A short strategy by odometry alone: each Go a straight drive to where odometry says it
+    ends (`go_to`), each Rot a turn in place. From a localized origin over a few metres that is
+    exact enough to pass a doorway, where the hallway centring of `Go` steers at the walls
+    beside it."""
+    for s in strategy.steps:
+        if s.kind is PrimitiveKind.GO:
+            yield from go_to(d, d.sense.odom.compose(Pose2D(s.metres, 0.0, 0.0)))
+        else:
+            yield from rotate_by(d, math.radians(s.value if s.value <= 180 else s.value - 360))
 
 
 def seek_side(d: Drive, side: ExitSide, max_m: float, into_m: float

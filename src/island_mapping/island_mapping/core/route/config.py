@@ -51,6 +51,22 @@ class NavigateConfig:
     stop_distance_m: float = field(
         default=0.6, metadata={"help": "a Go step ends early at this front range [m]"}
     )
+    one_wall_band_m: float = field(
+        default=0.5,
+        metadata={"help": "with one wall seen, the robot keeps half the hallway's width from it "
+                          "only when it is within this of that distance already (a room's wall "
+                          "farther off is no hallway's: the heading is held instead) [m]"},
+    )
+    doorway_ahead_m: float = field(
+        default=1.6,
+        metadata={"help": "echoes this near ahead, either side of the path, bound a doorway the "
+                          "robot steers into the middle of [m]"},
+    )
+    doorway_max_width_m: float = field(
+        default=1.6,
+        metadata={"help": "a gap ahead narrower than this is a doorway (a hallway's walls, "
+                          "farther apart, centre the robot themselves) [m]"},
+    )
     passage_side_m: float = field(
         default=0.7,
         metadata={"help": "both side walls nearer than this: a doorway's passage, where only "
@@ -158,6 +174,9 @@ class NavigateConfig:
             "search_radius_m",
             "search_heading_deg",
             "passage_side_m",
+            "doorway_ahead_m",
+            "doorway_max_width_m",
+            "one_wall_band_m",
             "max_turn_deg",
             "min_fit_constraint",
             "axis_search_step_m",

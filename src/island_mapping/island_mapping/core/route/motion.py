@@ -170,10 +170,13 @@ def go_along_hall(d: Drive, distance_m: float) -> Motion:
         if use_left and use_right:
             offset = 0.5 * (p.left_dist_m - p.right_dist_m)
             half_width = 0.5 * (p.left_dist_m + p.right_dist_m)
-        elif use_left:
+        elif use_left and abs(p.left_dist_m - half_width) < c.one_wall_band_m:
             offset = p.left_dist_m - half_width
-        elif use_right:
+        elif use_right and abs(p.right_dist_m - half_width) < c.one_wall_band_m:
             offset = half_width - p.right_dist_m
+        if not (use_left and use_right):  # a doorway ahead: aim at its middle
+            gap = doorway_offset(d.sense.ranges_m, d.sense.angles_rad, c)
+            offset = offset if gap is None else gap
         approach = float(np.clip(c.k_lateral_rad_per_m * offset, -max_app, max_app))
         err = wrap_angle(hold + approach - o.theta)
         remaining = distance_m - travelled
@@ -184,6 +187,26 @@ def go_along_hall(d: Drive, distance_m: float) -> Motion:
         travelled += math.hypot(now.x - last.x, now.y - last.y)
         last = now
     yield from step(d, 0.0, 0.0)
+
+
+def doorway_offset(ranges_m: FloatArray, angles_rad: FloatArray, c: NavigateConfig
+                   ) -> float | None:
+    """Where the middle of a narrow gap ahead lies across the heading (left positive) [m]: the
+    nearest echoes on either side of the path within doorway_ahead_m ahead bound the gap; None
+    unless both sides bound one narrower than doorway_max_width_m (a hallway is wider; its
+    walls centre the robot)."""
+    r = np.asarray(ranges_m, dtype=np.float64)
+    a = np.asarray(angles_rad, dtype=np.float64)
+    ok = np.isfinite(r)
+    x, y = r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])
+    ahead = (x > 0.1) & (x < c.doorway_ahead_m) & (np.abs(y) < c.doorway_max_width_m)
+    left, right = y[ahead & (y > 0.0)], y[ahead & (y < 0.0)]
+    if left.size == 0 or right.size == 0:
+        return None
+    lo, hi = float(right.max()), float(left.min())
+    if hi - lo >= c.doorway_max_width_m:
+        return None
+    return 0.5 * (hi + lo)
 
 
 def execute_strategy(d: Drive, strategy: ControlStrategy) -> Motion:
