@@ -336,7 +336,7 @@ class Explorer:
                     frozenset((e.source, e.target)), 0.0) + self.cfg.failed_edge_penalty_m
                 back = yield from self._retreat(e, last)
                 return (back, last) if back is not None else (None, last)
-            last = self._dock(e.target)
+            last = self._dock(e.target, fix)
         return last, last
 
     def _retreat(self, e: Edge, last: _Here) -> Generator[Step, None, _Here | None]:
@@ -355,7 +355,7 @@ class Explorer:
                                                self.cfg.return_max_shift_m)
         except RouteTimeoutError:
             return None
-        return self._dock(last.island_id) if fix.trusted else None
+        return self._dock(last.island_id, fix) if fix.trusted else None
 
     def _fixed(self, fix: Fix) -> None:
         self.counts["arrivals"] += 1
@@ -516,11 +516,14 @@ class Explorer:
             self._mark_blocked(here.island_id, exit_index)
         if fix is None or not fix.trusted:
             return (yield from self._lost(here))
-        return self._dock(here.island_id)
+        return self._dock(here.island_id, fix)
 
-    def _dock(self, island_id: int) -> _Here:
-        """Docked at island_id's origin by the explorer's own localization: tell the builder."""
-        here = _Here(island_id, self._sense.odom)
+    def _dock(self, island_id: int, fix: Fix) -> _Here:
+        """Docked at island_id's origin by the explorer's own localization (`fix`: where the
+        last look put the origin in the odometry frame; the robot stands within the docking
+        tolerance of it): tell the builder."""
+        origin = fix.origin_odom if fix.origin_odom is not None else self._sense.odom
+        here = _Here(island_id, origin)
         self._requests.append(Docked(here.island_id, here.origin_odom))
         self._since_dock = MotionRecord(self._sense.odom)
         self._here = island_id

@@ -31,6 +31,9 @@ class Fix:
     pose: Pose2D
     trusted: bool
     result: LocalizationResult
+    # Where the island's origin lies in the odometry frame after docking, by the last
+    # trusted look (None: not trusted, or not known).
+    origin_odom: Pose2D | None = None
 
 
 FixHook = Callable[[Fix], None]
@@ -111,9 +114,11 @@ def localize_and_dock(
     not trusted, and there is no search along the hallway (it would find the far basin)."""
     c = d.cfg
     pts = yield from look_around(d)
+    at = d.sense.odom  # where the look's points are in the robot's frame
     res, trusted = localize_multi(island, pts, estimate, c, max_shift_m)
     searchable = math.isinf(max_shift_m) and c.axis_search_step_m > 0 and c.axis_search_steps > 0
-    if not trusted and searchable:
+    searched = not trusted and searchable
+    if searched:
         # Search from the fit nearest the estimate: the smallest residual may be a wrong
         # heading basin.
         if pts.shape[0] >= c.sparse_look_points:
@@ -124,12 +129,17 @@ def localize_and_dock(
             # estimate along the heading the robot arrived on, a hallway's axis.
             res, trusted = yield from search_along_axis(
                 d, island, pts, replace(res, pose=estimate), axis_rad=estimate.theta)
+    if trusted and math.hypot(res.pose.x - estimate.x, res.pose.y - estimate.y) > (
+            c.route_max_shift_m):
+        trusted = False  # farther than a route's end can be: a look-alike place
     fix = Fix(island.id, res.pose, trusted, res)
     if on_fix is not None:
         on_fix(fix)
     if not trusted:
         return fix
     est = res.pose
+    if searched:  # the search moved the robot after the first look
+        at = d.sense.odom
     for _ in range(c.dock_attempts):
         if math.hypot(est.x, est.y) <= c.dock_tol_m and abs(est.theta) <= math.radians(
             c.dock_tol_deg
@@ -141,8 +151,8 @@ def localize_and_dock(
         res, ok = localize_multi(island, pts, Pose2D(0.0, 0.0, 0.0), c)
         if not ok:
             break
-        est = res.pose
-    return fix
+        est, at = res.pose, d.sense.odom
+    return replace(fix, origin_odom=at.compose(est.inverse()))
 
 
 def search_along_axis(

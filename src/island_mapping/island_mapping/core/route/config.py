@@ -51,6 +51,14 @@ class NavigateConfig:
     stop_distance_m: float = field(
         default=0.6, metadata={"help": "a Go step ends early at this front range [m]"}
     )
+    contact_retries: int = field(
+        default=2,
+        metadata={"help": "a Go step that touches a wall backs off and goes on this many times "
+                          "before it stops there [-]"},
+    )
+    contact_backoff_m: float = field(
+        default=0.2, metadata={"help": "how far it backs off [m]"}
+    )
     one_wall_band_m: float = field(
         default=0.5,
         metadata={"help": "with one wall seen, the robot keeps half the hallway's width from it "
@@ -72,6 +80,12 @@ class NavigateConfig:
         metadata={"help": "both side walls nearer than this: a doorway's passage, where only "
                           "the echo straight ahead ends a Go step [m]"},
     )
+    route_max_shift_m: float = field(
+        default=2.0,
+        metadata={"help": "an arrival's fit farther than this from where the route's end puts "
+                          "the robot is not trusted (the search along a hallway reaches "
+                          "axis_search_steps x axis_search_step_m; beyond, a look-alike) [m]"},
+    )
     search_radius_m: float = field(
         default=0.6,
         metadata={
@@ -84,7 +98,7 @@ class NavigateConfig:
         default=8.0, metadata={"help": "guesses also at +- this heading offset [deg]"}
     )
     max_turn_deg: float = field(
-        default=30.0,
+        default=20.0,
         metadata={
             "help": "a fit that turned the points farther than this from the estimate's "
             "heading is no arrival candidate [deg]"
@@ -174,6 +188,8 @@ class NavigateConfig:
             "search_radius_m",
             "search_heading_deg",
             "passage_side_m",
+            "route_max_shift_m",
+            "contact_backoff_m",
             "doorway_ahead_m",
             "doorway_max_width_m",
             "one_wall_band_m",
@@ -192,6 +208,10 @@ class NavigateConfig:
         if self.sparse_look_points < 0:
             raise NavigateError(
                 f"NavigateConfig.sparse_look_points: must be >= 0, got {self.sparse_look_points}"
+            )
+        if self.contact_retries < 0:
+            raise NavigateError(
+                f"NavigateConfig.contact_retries: must be >= 0, got {self.contact_retries}"
             )
         if self.dock_attempts < 1:
             raise NavigateError(

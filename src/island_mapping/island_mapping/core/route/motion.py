@@ -45,6 +45,8 @@ _GO_TO_FLOOR_MPS = 0.02
 _GO_FLOOR_MPS = 0.03
 # A Go ends this close to its distance [m]; the slowest turn of rotate_by [rad/s].
 _GO_DONE_M = 0.005
+_BACK_OFF_MPS = 0.15
+_BACK_OFF_PERIODS = 40  # a back-off that moves nothing (held on both sides) gives up
 _MIN_ROT_RATE_RADPS = 0.1
 # The hallway direction is taken from the walls when they are within this of the heading [rad].
 _WALL_TRUST_RAD = math.radians(25.0)
@@ -156,6 +158,7 @@ def go_along_hall(d: Drive, distance_m: float) -> Motion:
     hold = last.theta  # hallway direction in the odometry frame [rad]
     half_width = 0.5 * d.hall_width_m
     max_app = math.radians(c.max_approach_deg)
+    backoffs = 0
     while travelled < distance_m - _GO_DONE_M:
         p = perceive(d.sense.ranges_m, d.sense.angles_rad, d.perception)
         o = d.sense.odom
@@ -182,10 +185,25 @@ def go_along_hall(d: Drive, distance_m: float) -> Motion:
         remaining = distance_m - travelled
         v = min(c.go_speed_mps, _APPROACH_GAIN_PER_S * remaining + _GO_FLOOR_MPS)
         if (yield from step(d, v, _turn_rate(d, err))):
-            break  # a wall the sonar missed is in the way (a door jamb beside): stop here
+            # a wall the sonar missed is in the way (a door jamb beside): back off and aim
+            # again at the gap's middle, a few times, then stop here
+            if backoffs >= c.contact_retries:
+                break
+            backoffs += 1
+            yield from _back_off(d, c.contact_backoff_m)
         now = d.sense.odom
         travelled += math.hypot(now.x - last.x, now.y - last.y)
         last = now
+    yield from step(d, 0.0, 0.0)
+
+
+def _back_off(d: Drive, metres: float) -> Motion:
+    """Reverse straight by `metres` of odometric travel (off a wall the robot touched)."""
+    start = d.sense.odom
+    for _ in range(_BACK_OFF_PERIODS):
+        if math.hypot(d.sense.odom.x - start.x, d.sense.odom.y - start.y) >= metres or (
+                yield from step(d, -_BACK_OFF_MPS, 0.0)):
+            break
     yield from step(d, 0.0, 0.0)
 
 
