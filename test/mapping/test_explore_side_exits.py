@@ -4,9 +4,11 @@ its prefix and a turn (the T world's branch, which has no island at its junction
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
+from island_mapping.core.builder.opening_config import OpeningConfig
 from island_mapping.core.explore import ExplorerConfig
 from island_mapping.core.explore.openings import (
     Opening,
@@ -115,7 +117,8 @@ def test_the_explorer_reaches_a_branch_by_its_side_exit() -> None:
     the branch north becomes a side exit of island 0, and the explorer drives its prefix,
     turns north and hands over: the branch gets an island, by an edge from island 0."""
     setup = SimSetup(world=load_world("t_junction"))
-    run = explore_by_exits(setup, 600.0, rng=np.random.default_rng(1))
+    no_openings = ExplorerConfig(opening=OpeningConfig(enabled=False), accept_on_legs=False)
+    run = explore_by_exits(setup, 600.0, explorer_cfg=no_openings, rng=np.random.default_rng(1))
     assert run.done
     side = [e for e in run.graph.get_island(0).exits if e.is_side]
     assert len(side) == 1 and side[0].side is ExitSide.LEFT
@@ -128,6 +131,12 @@ def test_the_explorer_reaches_a_branch_by_its_side_exit() -> None:
     turn = steps[steps.index(go) + 1]
     assert abs(go.metres - side[0].prefix.length_m) < 1.6  # the prefix, then the turn
     assert turn.kind is PrimitiveKind.ROT and 60 <= turn.value <= 120
-    plain = explore_by_exits(setup, 600.0, explorer_cfg=ExplorerConfig(side_exits=False),
-                             rng=np.random.default_rng(1))
+    plain = explore_by_exits(setup, 600.0, explorer_cfg=dataclasses.replace(
+        no_openings, side_exits=False), rng=np.random.default_rng(1))
     assert len(plain.graph) == 2 and len(run.graph) == 3
+    # With side openings as places (the default) the follower stops at the branch and the
+    # island stands in its mouth: no side exit is needed to learn of it.
+    direct = explore_by_exits(setup, 600.0, rng=np.random.default_rng(1))
+    mouths = [i for i in direct.graph.islands() if i.origin_truth is not None
+              and i.origin_truth.y > 1.0]
+    assert mouths and all(not e.is_side or e.prefix is not None for i in mouths for e in i.exits)

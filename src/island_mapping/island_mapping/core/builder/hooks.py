@@ -18,7 +18,9 @@
   refuses (a `Refusal`, counted) or None; the recognition it sees carries the direction the
   robot came from in the island frame (`arrival_rad`). The live builder and the passive mode
   (`core.builder.passive`) both ask it.
-  `BuilderHooks.revisit` replaces the builder's revisit search settings (`hooked_config`).
+  `BuilderHooks.revisit` replaces the builder's revisit search settings, `opening` and
+  `accept_on_legs` its side openings and eq. 3 over the star's region (`hooked_config`):
+  exploration by the map attempts islands at side openings.
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ from island_mapping.core.builder.diagnostics import Refusal
 from island_mapping.core.builder.events import BuilderEvent, EventKind
 from island_mapping.core.builder.geometry import concat
 from island_mapping.core.builder.opening import OpeningExit
+from island_mapping.core.builder.opening_config import OpeningConfig
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition
 from island_mapping.core.builder.star import Attempt
 
@@ -77,13 +80,21 @@ class BuilderHooks:
     accept_revisit: RevisitGate | None = None
     arrival_match_deg: float = 45.0
     revisit: RevisitConfig | None = None  # the recognition the explorer wants (None: the builder's)
+    opening: OpeningConfig | None = None  # side openings as places (None: the builder's)
+    accept_on_legs: bool | None = None  # eq. 3 over the star's region (None: the builder's)
 
 
 def hooked_config(config: BuilderConfig | None, hooks: BuilderHooks) -> BuilderConfig:
-    """The builder's configuration under `hooks`: its revisit settings replaced by the
-    hooks' when they bring their own."""
+    """The builder's configuration under `hooks`: its revisit settings, its side openings and
+    accept_on_legs replaced by the hooks' when they bring their own."""
     cfg = config if config is not None else BuilderConfig()
-    return cfg if hooks.revisit is None else dataclasses.replace(cfg, revisit=hooks.revisit)
+    if hooks.revisit is not None:
+        cfg = dataclasses.replace(cfg, revisit=hooks.revisit)
+    if hooks.opening is not None:
+        cfg = dataclasses.replace(cfg, opening=hooks.opening)
+    if hooks.accept_on_legs is not None:
+        cfg = dataclasses.replace(cfg, accept_on_legs=hooks.accept_on_legs)
+    return cfg
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ import math
 from dataclasses import dataclass, field, fields
 
 from island_mapping.core.builder import RevisitConfig
+from island_mapping.core.builder.opening_config import OpeningConfig
 
 
 class ExploreError(ValueError):
@@ -294,6 +295,16 @@ class ExplorerConfig:
     novelty: NoveltyConfig = field(
         default_factory=NoveltyConfig,
         metadata={"help": "which exits the planner takes last: those into known space"},
+    )
+    opening: OpeningConfig = field(
+        default_factory=lambda: OpeningConfig(enabled=True),
+        metadata={"help": "the builder's side openings while exploring by exits: a doorway or "
+                          "a side hallway passed is a place to attempt an island at, inside it"},
+    )
+    accept_on_legs: bool = field(
+        default=True,
+        metadata={"help": "the builder checks eq. 3 over the region its star surveyed while "
+                          "exploring by exits (BuilderConfig.accept_on_legs) [bool]"},
     )
     revisit: RevisitConfig = field(
         default_factory=lambda: RevisitConfig(

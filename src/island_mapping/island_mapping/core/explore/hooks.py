@@ -81,7 +81,8 @@ def explorer_hooks(cfg: ExplorerConfig, graph: Callable[[], TopoGraph]) -> Build
 
     return BuilderHooks(managed=True, find_exits=exits,
                         accept_revisit=loop_closure_gate(cfg, graph),
-                        arrival_match_deg=cfg.exit.arrival_match_deg, revisit=cfg.revisit)
+                        arrival_match_deg=cfg.exit.arrival_match_deg, revisit=cfg.revisit,
+                        opening=cfg.opening, accept_on_legs=cfg.accept_on_legs)
 
 
 def loop_closure_hooks(cfg: ExplorerConfig) -> BuilderHooks:
