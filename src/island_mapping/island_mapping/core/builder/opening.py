@@ -47,6 +47,11 @@ from island_mapping.core.graph import reverse_strategy
 
 _TURNED_RAD = math.radians(30.0)
 """The follower turned off the hallway: heading changed by more than this [rad]."""
+_PAST_WALL_M = 0.3
+"""A side open this far past the hallway's wall line (half its width in): a room behind a
+doorway in a thin wall; nearer, the robot may still stand in a junction's open middle [m]."""
+_DECIDE_MARGIN_M = 0.1
+"""The drive in goes at least this far past where a room would show, before it stops [m]."""
 _WIDTH_GAIN = 0.1
 """Weight of one scan's hallway width in the smoothed width [-]."""
 
@@ -176,9 +181,11 @@ class Entry:
             if seen.left_dist_m < cfg.narrow_m and seen.right_dist_m < cfg.narrow_m:
                 self.narrow_end_m = self.travelled_m  # in a passage: centre between its sides
                 lateral = 0.5 * (seen.right_dist_m - seen.left_dist_m)
-            elif self.travelled_m > cfg.narrow_m and (seen.left_open or seen.right_open):
-                self.opened = True  # past a doorway in a thin wall: a room opens out
-            goal = cfg.branch_m if not self.room else min(
+            elif self.travelled_m > 0.5 * self.hall_width_m + _PAST_WALL_M and (
+                    seen.left_open or seen.right_open):
+                self.opened = True  # past the hallway's wall line: a room opens out
+            decide_m = 0.5 * self.hall_width_m + _PAST_WALL_M + _DECIDE_MARGIN_M
+            goal = max(cfg.branch_m, decide_m) if not self.room else min(
                 max(cfg.room_in_m, (self.narrow_end_m or 0.0) + cfg.past_m), cfg.max_in_m)
             # Only the echo straight ahead stops it: the oblique transducers hear a doorway's
             # wall beside the opening, on their axes, as if in the way.

@@ -48,8 +48,7 @@ class OpeningConfig:
     narrow_m: float = field(
         default=0.7,
         metadata={"help": "both side walls nearer than this (robot centre): a doorway's "
-                          "passage; a side opening out after this far in: a doorway in a "
-                          "thin wall, a room behind [m]"},
+                          "passage [m]"},
     )
     past_m: float = field(
         default=0.6, metadata={"help": "the star starts this far past a passage's end [m]"}

@@ -51,6 +51,15 @@ class NavigateConfig:
     stop_distance_m: float = field(
         default=0.6, metadata={"help": "a Go step ends early at this front range [m]"}
     )
+    doorway_go_m: float = field(
+        default=2.5,
+        metadata={"help": "a quarter turn followed by a Go no longer than this enters a "
+                          "doorway: the robot first stops at the doorway's middle [m]"},
+    )
+    doorway_search_m: float = field(
+        default=0.8,
+        metadata={"help": "it looks for the doorway this far back and on [m]"},
+    )
     contact_retries: int = field(
         default=2,
         metadata={"help": "a Go step that touches a wall backs off and goes on this many times "
@@ -189,6 +198,8 @@ class NavigateConfig:
             "search_heading_deg",
             "passage_side_m",
             "route_max_shift_m",
+            "doorway_go_m",
+            "doorway_search_m",
             "contact_backoff_m",
             "doorway_ahead_m",
             "doorway_max_width_m",

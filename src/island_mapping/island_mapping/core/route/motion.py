@@ -46,6 +46,7 @@ _GO_FLOOR_MPS = 0.03
 # A Go ends this close to its distance [m]; the slowest turn of rotate_by [rad/s].
 _GO_DONE_M = 0.005
 _BACK_OFF_MPS = 0.15
+_QUARTER_TOL_DEG = 15.0  # a turn this near 90 deg is a quarter turn
 _BACK_OFF_PERIODS = 40  # a back-off that moves nothing (held on both sides) gives up
 _MIN_ROT_RATE_RADPS = 0.1
 # The hallway direction is taken from the walls when they are within this of the heading [rad].
@@ -228,13 +229,49 @@ def doorway_offset(ranges_m: FloatArray, angles_rad: FloatArray, c: NavigateConf
 
 
 def execute_strategy(d: Drive, strategy: ControlStrategy) -> Motion:
-    """Run the primitives: Go d [cm] along the hallway, Rot a [deg CCW] in place (odometry)."""
-    for s in strategy.steps:
+    """Run the primitives: Go d [cm] along the hallway, Rot a [deg CCW] in place (odometry).
+    A quarter turn between a Go and a short Go (into a doorway, `doorway_go_m`) first finds
+    the doorway beside the robot and stops at its middle (`center_on_doorway`): odometry
+    along a hallway is a few decimetres off after ten metres, a doorway's margin less."""
+    steps = strategy.steps
+    for k, s in enumerate(steps):
         if s.kind is PrimitiveKind.GO:
             yield from go_along_hall(d, s.metres)
-        else:
-            turn = s.value if s.value <= 180 else s.value - 360
-            yield from rotate_by(d, math.radians(turn))
+            continue
+        turn = s.value if s.value <= 180 else s.value - 360
+        nxt = steps[k + 1] if k + 1 < len(steps) else None
+        if (k > 0 and steps[k - 1].kind is PrimitiveKind.GO and nxt is not None
+                and nxt.kind is PrimitiveKind.GO and nxt.metres <= d.cfg.doorway_go_m
+                and abs(abs(turn) - 90) <= _QUARTER_TOL_DEG):
+            yield from center_on_doorway(d, 1 if turn > 0 else -1)
+        yield from rotate_by(d, math.radians(turn))
+
+
+def center_on_doorway(d: Drive, side: int) -> Motion:
+    """Back up doorway_search_m, then drive on twice that, noting where the side (1 left,
+    -1 right) is open; stop at the middle of the open run nearest the start if it is a
+    doorway (narrower than doorway_max_width_m), else back where it started."""
+    c = d.cfg
+    start = d.sense.odom
+    yield from _back_off(d, c.doorway_search_m)
+    base = d.sense.odom
+    runs: list[list[float]] = []
+    was_open = False
+    for cmd in go_along_hall(d, 2.0 * c.doorway_search_m):
+        p = perceive(d.sense.ranges_m, d.sense.angles_rad, d.perception)
+        s = math.hypot(d.sense.odom.x - base.x, d.sense.odom.y - base.y)
+        is_open = p.left_open if side > 0 else p.right_open
+        if is_open and not was_open:
+            runs.append([s, s])
+        if is_open:
+            runs[-1][1] = s
+        was_open = is_open
+        yield cmd
+    back = math.hypot(start.x - base.x, start.y - base.y)
+    doors = [r for r in runs if r[1] - r[0] < c.doorway_max_width_m]
+    goal = min((0.5 * (r[0] + r[1]) for r in doors), key=lambda m: abs(m - back),
+               default=back)
+    yield from go_to(d, base.compose(Pose2D(goal, 0.0, 0.0)))
 
 
 def look_around(d: Drive) -> Generator[Command, None, FloatArray]:
