@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from island_msgs_py.types import Exit, FloatArray, Island
+from island_msgs_py.types import Exit, FloatArray, Island, Pose2D, wrap_angle
 
 from island_mapping.core.builder.diagnostics import Refusal
 from island_mapping.core.builder.hooks import BuilderHooks, RevisitGate, facing_exit
@@ -34,17 +34,32 @@ from island_mapping.core.explore.exits import (
     opening_exits,
     through_gates,
 )
+from island_mapping.core.explore.openings import exit_pose
 from island_mapping.core.graph import TopoGraph
+
+SIDE_EXIT_LOOK_M = 2.0
+"""A side exit faces an arrival by the direction to this far along it from its opening [m]."""
 
 
 def arrival_agrees(island: Island, arrival_rad: float | None, within_deg: float) -> bool:
     """Topological evidence (module docstring, (3)): may a robot that came from `arrival_rad`
-    (island frame [rad]) arrive at `island`? An exit must face it within `within_deg` [deg]."""
+    (island frame [rad]) arrive at `island`? An exit must face it within `within_deg` [deg]:
+    one at the origin, or a side exit, by the direction from the origin to a point
+    SIDE_EXIT_LOOK_M along it (an island in a doorway is reached along the hallway its
+    continuation leads down)."""
     if not island.exits:
         return True
     if arrival_rad is None:
         return False  # nothing to check it by: a missed closure is cheaper than a false one
-    return facing_exit(island, arrival_rad, within_deg) is not None
+    if facing_exit(island, arrival_rad, within_deg) is not None:
+        return True
+    for e in island.exits:
+        if e.prefix is None or e.side is None:
+            continue
+        p = exit_pose(e.prefix, e.side).compose(Pose2D(SIDE_EXIT_LOOK_M, 0.0, 0.0))
+        if abs(wrap_angle(math.atan2(p.y, p.x) - arrival_rad)) <= math.radians(within_deg):
+            return True
+    return False
 
 
 def loop_closure_gate(cfg: ExplorerConfig, graph: Callable[[], TopoGraph] | None = None

@@ -51,6 +51,14 @@ class NavigateConfig:
     stop_distance_m: float = field(
         default=0.6, metadata={"help": "a Go step ends early at this front range [m]"}
     )
+    go_short_m: float = field(
+        default=0.6,
+        metadata={"help": "a Go step of a strategy that ends this much short of its length "
+                          "(and go_short_fraction of it) is a deviation: the route failed [m]"},
+    )
+    go_short_fraction: float = field(
+        default=0.1, metadata={"help": "see go_short_m [-]"}
+    )
     doorway_go_m: float = field(
         default=2.5,
         metadata={"help": "a quarter turn followed by a Go no longer than this enters a "
@@ -199,6 +207,8 @@ class NavigateConfig:
             "passage_side_m",
             "route_max_shift_m",
             "doorway_go_m",
+            "go_short_m",
+            "go_short_fraction",
             "doorway_search_m",
             "contact_backoff_m",
             "doorway_ahead_m",

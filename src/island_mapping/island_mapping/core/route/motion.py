@@ -57,6 +57,11 @@ class RouteTimeoutError(Exception):
     """The time limit of the current leg of a route ran out."""
 
 
+class RouteDeviationError(RouteTimeoutError):
+    """A strategy's Go step ended well short of its length (a wall where the recorded way went
+    on): the robot is not where the strategy leads, whatever a localization there says."""
+
+
 @dataclass
 class Sense:
     """The robot's newest sensing, updated in place before a motion generator is resumed.
@@ -147,7 +152,7 @@ def go_to(d: Drive, target_odom: Pose2D) -> Motion:
     yield from step(d, 0.0, 0.0)
 
 
-def go_along_hall(d: Drive, distance_m: float) -> Motion:
+def go_along_hall(d: Drive, distance_m: float) -> Generator[Command, None, float]:
     """Drive distance_m of odometric travel forward, centred in the hallway by the sonar;
     stop early at a wall ahead (an echo in the robot's path within 30 deg of the heading: a
     doorway's jamb heard on an oblique transducer is beside the path; in a doorway's
@@ -196,6 +201,7 @@ def go_along_hall(d: Drive, distance_m: float) -> Motion:
         travelled += math.hypot(now.x - last.x, now.y - last.y)
         last = now
     yield from step(d, 0.0, 0.0)
+    return travelled
 
 
 def _back_off(d: Drive, metres: float) -> Motion:
@@ -232,11 +238,15 @@ def execute_strategy(d: Drive, strategy: ControlStrategy) -> Motion:
     """Run the primitives: Go d [cm] along the hallway, Rot a [deg CCW] in place (odometry).
     A quarter turn between a Go and a short Go (into a doorway, `doorway_go_m`) first finds
     the doorway beside the robot and stops at its middle (`center_on_doorway`): odometry
-    along a hallway is a few decimetres off after ten metres, a doorway's margin less."""
+    along a hallway is a few decimetres off after ten metres, a doorway's margin less. A Go
+    that ends short by more than go_short_m and go_short_fraction of its length raises
+    `RouteDeviationError`: the recorded way went on where this one met a wall."""
     steps = strategy.steps
     for k, s in enumerate(steps):
         if s.kind is PrimitiveKind.GO:
-            yield from go_along_hall(d, s.metres)
+            got = yield from go_along_hall(d, s.metres)
+            if got < s.metres - max(d.cfg.go_short_m, d.cfg.go_short_fraction * s.metres):
+                raise RouteDeviationError(f"Go {s.value} ended after {got:.2f} m")
             continue
         turn = s.value if s.value <= 180 else s.value - 360
         nxt = steps[k + 1] if k + 1 < len(steps) else None
