@@ -161,7 +161,7 @@ class ExplorerConfig:
     """The explorer's mission (`core.explore.mission`)."""
 
     stuck_s: float = field(
-        default=120.0,
+        default=45.0,
         metadata={"help": "the builder's exploration of an exit is stopped as past exit_cap_s "
                           "when the robot's odometric position has stayed within stuck_m for "
                           "this long [s]"},
