@@ -71,7 +71,7 @@ def _fields(obj: Any, depth: int) -> list[str]:
 
 def render(node: str, header: list[str]) -> str:
     """The YAML text of `node`'s parameters under `header` (comment lines)."""
-    lines = list(header) + [f"{node}:", f"{INDENT}ros__parameters:"]
+    lines = [*header, f"{node}:", f"{INDENT}ros__parameters:"]
     for prefix, defaults, comment in NODES[node]:
         if prefix is None:
             lines.extend(_fields(defaults, 2))

@@ -174,7 +174,9 @@ def star_step(
     drive out (shortened to the free range ahead minus the clearance; skipped if too short),
     register the leg and evaluate the attempt, reverse back to the centre. odom: the odometric
     pose; ahead_free_m: nearest echo ahead [m]; odom_heading_var_rad2: odometry's heading
-    variance since the anchor (None: do not register)."""
+    variance since the anchor (None: do not register); stalled: the drive under way made no
+    progress (the robot touches a wall): a turn skips its leg, a leg or its way back ends
+    where the robot is."""
     sc = m.cfg.star
     while att.leg < len(LEG_BEARINGS_RAD):
         bearing = LEG_BEARINGS_RAD[att.leg]
