@@ -27,6 +27,7 @@ class Refusal(StrEnum):
     LOOK_ALIKE = "look_alike"  # another island that may be here fits as well
     NOT_AT_PLACE = "not_at_place"  # the loop-closure gate: seen from the next place
     OUTSIDE_UNCERTAINTY = "outside_uncertainty"  # the gate: beyond the propagated covariance
+    TURNED_ALIAS = "turned_alias"  # the island fits as well turned by a quarter/half turn
     TOPOLOGY = "topology"  # the explorer's gate: no exit of the island faces the arrival
 
 

@@ -42,6 +42,12 @@ from island_mapping.core.localize import localize
 _GUESSES_PER_BATCH = 40
 # Inlier grids kept for the islands searched last (each at most 4 MB, typically < 1 MB).
 _FIELDS_KEPT = 64
+# The turns under which a place may fit itself (a + junction, a square room, a hallway).
+_ALIAS_TURNS_RAD = (math.pi / 2, -math.pi / 2, math.pi)
+# The heading uncertainty past which they are checked: half of the smallest of them.
+_ALIAS_MIN_REACH_RAD = math.pi / 4
+# The heading half-width of the search around a turned fit, in heading steps.
+_ALIAS_STEPS = 2
 
 
 def _ignore(_reason: Refusal) -> None:
@@ -254,6 +260,10 @@ class Recognizer:
         ):
             self.diagnostics.refuse(Refusal.LOOK_ALIKE)
             return None
+        chosen = next(c for c in candidates if c.island.id == best.island_id)
+        if self._turned_alias(chosen, best, points, star):
+            self.diagnostics.refuse(Refusal.TURNED_ALIAS)
+            return None
         return best
 
     def estimates(self, island_id: int, snap: PoseSnapshot) -> list[tuple[Pose2D, float, float]]:
@@ -363,22 +373,54 @@ class Recognizer:
         k = rc.rival_sigmas
         if k <= 0:
             return False
-        max_res = rc.star_max_residual_m if star else rc.max_residual_m
         for cand in candidates:
             est = at.relative_to(cand.origin)
             if cand.island.id == chosen or math.hypot(est.x, est.y) > (
                 k * cand.sigma_m + rc.max_dock_m
             ):
                 continue
-            radius = min(max(k * cand.sigma_m, rc.search_min_m), rc.rival_max_m)
-            win = _Window(
-                radius,
-                min(k * cand.sigma_rad, math.radians(rc.star_search_max_deg)),
-                min(max(rc.search_step_m, radius / rc.star_search_cells), rc.rival_step_m),
-                max_res,
-            )
+            win = self._rival_window(
+                cand, min(k * cand.sigma_rad, math.radians(rc.star_search_max_deg)), star)
             # A rival's failed fits are not refusals of this recognition.
             if self._search(cand.island, pts, est, win, count_refusals=False) is not None:
+                return True
+        return False
+
+    def _rival_window(self, cand: _Candidate, max_dth_rad: float, star: bool) -> _Window:
+        """The wide window of a rival search around a candidate (rival_sigmas of its
+        position sigma, within search_min_m and rival_max_m)."""
+        rc = self.config.revisit
+        radius = min(max(rc.rival_sigmas * cand.sigma_m, rc.search_min_m), rc.rival_max_m)
+        return _Window(
+            radius, max_dth_rad,
+            min(max(rc.search_step_m, radius / rc.star_search_cells), rc.rival_step_m),
+            rc.star_max_residual_m if star else rc.max_residual_m,
+        )
+
+    def _turned_alias(
+        self, cand: _Candidate, best: Recognition, pts: FloatArray, star: bool,
+    ) -> bool:
+        """Does the chosen island fit the points as well turned by a quarter or a half turn,
+        once its heading uncertainty (rival_sigmas heading sigmas) exceeds an eighth of a turn?
+        A + junction or a square room mapped all round fits itself turned, and the fit inside a
+        clipped heading window may be the turned one. Every turn is tried: odometry's
+        systematic drift outgrows its sigmas. A place mapped in part is not caught (on
+        paper_fig4 a crossing whose island saw two of its arms was docked 91 deg off, 3.5
+        heading sigmas from odometry's estimate)."""
+        rc = self.config.revisit
+        k = rc.rival_sigmas
+        if k <= 0 or not rc.turned_alias or k * cand.sigma_rad < _ALIAS_MIN_REACH_RAD:
+            return False
+        step = math.radians(rc.heading_step_deg)
+        for turn in _ALIAS_TURNS_RAD:
+            heading = best.pose.theta + turn
+            win = self._rival_window(cand, _ALIAS_STEPS * step, star)
+            win = dataclasses.replace(win, radius_m=min(win.radius_m, rc.max_dock_m))
+            alias = self._search(cand.island, pts, Pose2D(best.pose.x, best.pose.y, heading),
+                                 win, count_refusals=False)
+            if alias is not None and (
+                alias.inlier_fraction >= best.inlier_fraction - rc.ambiguity_inlier_margin
+            ):
                 return True
         return False
 

@@ -209,6 +209,12 @@ class RevisitConfig:
                           "within the caps instead of refused (needs unique_island and a "
                           "revisit gate with topological evidence) [bool]"},
     )
+    turned_alias: bool = field(
+        default=False,
+        metadata={"help": "refuse a recognition when the island fits the points as well turned "
+                          "by a quarter or half turn, once its heading uncertainty (rival_sigmas "
+                          "heading sigmas) exceeds 45 deg [bool]"},
+    )
     fit_sigma_m: float = field(
         default=0.3, metadata={"help": "a recognised pose's own position error, added to the "
                                "odometric estimate's covariance in its Mahalanobis distance [m]"})

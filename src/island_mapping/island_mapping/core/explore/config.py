@@ -309,7 +309,7 @@ class ExplorerConfig:
     revisit: RevisitConfig = field(
         default_factory=lambda: RevisitConfig(
             unique_island=True, clip_search=True, star_search_max_m=10.0,
-            star_search_cells=14, ambiguity_inlier_margin=0.15),
+            star_search_cells=14, ambiguity_inlier_margin=0.15, turned_alias=True),
         metadata={"help": "the builder's revisit search while exploring by exits: the star "
                           "searches every island odometry allows (within its caps) and a "
                           "recognition must fit one island only; the gate adds the topology"},
