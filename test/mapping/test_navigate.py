@@ -79,6 +79,7 @@ def test_route_by_islands_succeeds_where_global_odometry_misses() -> None:
     graph, setup = make_graph(world), SimSetup(world)
     res = follow_route(graph, [0, 1, 2], setup, rng=np.random.default_rng(1))
     assert res.success, res
+    assert res.end == "completed"
     assert [(e.source, e.target) for e in res.edges] == [(0, 1), (1, 2)]
     cfg = NavigateConfig()
     for e in res.edges:
@@ -104,6 +105,19 @@ def test_a_wrong_island_model_is_reported_as_a_failed_edge() -> None:
     assert not res.success
     assert len(res.edges) == 1  # stopped at the failed edge
     assert not res.edges[0].success
+    assert res.end == "arrival_refused"
+
+
+def test_a_strategy_that_runs_into_a_wall_ends_the_route_as_deviated() -> None:
+    """Edge 0 -> 1 says Go 25 m where the corridor ends after ~19 m: the Go step stops at
+    the wall well short of its length, and the route says so instead of localizing there."""
+    world = l_world()
+    graph = make_graph(world)
+    graph.replace_edge(Edge(0, 1, ControlStrategy.parse("Go 2500, Rot 90"), 25.0))
+    res = follow_route(graph, [0, 1], SimSetup(world), rng=np.random.default_rng(3))
+    assert not res.success
+    assert res.end == "deviated"
+    assert res.edges == ()
 
 
 def test_evaluate_routes_uses_both_directions_and_compares_with_the_baseline() -> None:

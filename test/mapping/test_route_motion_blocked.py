@@ -43,3 +43,34 @@ def test_go_along_hall_backs_off_a_contact_then_stops_there() -> None:
     assert backoffs == 2  # contact_retries: backed off and went on twice
     assert got <= 0.4 and periods < 100  # then stopped at the wall, not pushing on
     assert _run(0.4, retries=0)[1] == 0  # no retries: stops at the first contact
+
+
+# A room (x < 1) whose east wall (0.5 m thick, x = 1.0-1.5) has a 1 m door at -0.5 < y < 0.5,
+# a hallway beyond; the same geometry as a generated office's room door.
+DOOR_ROOM = np.array([
+    [1.0, -3.0, 1.0, -0.5], [1.0, -0.5, 1.5, -0.5], [1.5, -0.5, 1.5, -3.0],
+    [1.0, 3.0, 1.0, 0.5], [1.0, 0.5, 1.5, 0.5], [1.5, 0.5, 1.5, 3.0],
+    [-3.0, -3.0, 1.0, -3.0], [-3.0, 3.0, 1.0, 3.0], [-3.0, -3.0, -3.0, 3.0],
+    [1.5, -3.0, 3.5, -3.0], [1.5, 3.0, 3.5, 3.0], [3.5, -3.0, 3.5, 3.0],
+])
+
+
+@pytest.mark.parametrize("heading_deg", [-5.0, 0.0, -10.0])
+def test_a_go_through_a_door_started_off_its_middle_passes_the_jamb(heading_deg: float) -> None:
+    """The robot stands 0.6 m before the door, 0.37 m off its middle (where an island in a
+    room put its origin), and a strategy says Go 2 m through it. Only the near jamb echoes
+    (on one oblique transducer, inside the robot's path); the way straight ahead is free.
+    The Go steers past the jamb and through the door instead of stopping at once (it did,
+    and the route ended as a deviation)."""
+    from island_mapping.evaluation.navigate import SimRunner, SimSetup
+    from island_sim.core.robot import SimRobot
+    from island_sim.core.world import World
+
+    setup = SimSetup(world=World(DOOR_ROOM, "door"))
+    rng = np.random.default_rng(4)
+    robot = SimRobot(setup.world, Pose2D(0.4, 0.37, math.radians(heading_deg)), rng,
+                     setup.robot, setup.odometry, track_covariance=False)
+    sim = SimRunner(setup, robot, rng, NavigateConfig())
+    got = sim.run(go_along_hall(sim.drive, 2.0))
+    assert got == pytest.approx(2.0, abs=0.05)
+    assert robot.true_pose.x > 2.0  # through the door, into the hallway

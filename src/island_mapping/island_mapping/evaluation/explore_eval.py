@@ -85,16 +85,21 @@ def measure_exploration(spec: str, policy: Policy, seed: int, sim_s: float, rout
     graph, events, origins_odom, extra = run(setup, sim_s, np.random.default_rng(seed), start)
     explore_wall_s = time.monotonic() - t0
     pairs: list[tuple[int, int, bool | None]] = []
+    ends: dict[str, int] = {}
     if routes > 0 and len(graph) >= 2:
         try:
             ev = evaluate_routes(graph, setup, routes, np.random.default_rng(seed), origins_odom)
             pairs = [(a, b, r.success) for (a, b), r in zip(ev.pairs, ev.islands, strict=True)]
+            for r in ev.islands:
+                key = r.end if r.success or r.end != "completed" else "off_target"
+                ends[key] = ends.get(key, 0) + 1
         except NavigateError:
             pairs = []
     places = world_places(world, start, allowed=known_free_of(spec, resolution_m))
     figures = evaluate_map(world, places, graph, events, pairs).to_dict()
     return {"world": spec, "policy": policy.value, "seed": seed,
             **{k: figures[k] for k in HEADLINE}, **extra,
+            "route_ends": ends,
             "explore_wall_s": round(explore_wall_s, 1),
             "total_wall_s": round(time.monotonic() - t0, 1),
             "missed_places": [p for p in figures["place_list"] if not p["covered"]]}

@@ -76,6 +76,7 @@ class RouteResult:
     final_error_deg: float
     success: bool
     sim_time_s: float
+    end: str = "completed"  # core.route.RouteEnd: how the route ended
 
 
 @dataclass(frozen=True)
@@ -149,11 +150,12 @@ class _JudgedByTruth:
 
 
 def _result(graph: TopoGraph, route: Sequence[int], robot: SimRobot, completed: bool,
-            edges: list[EdgeResult], cfg: NavigateConfig) -> RouteResult:
+            edges: list[EdgeResult], cfg: NavigateConfig, end: str = "completed"
+            ) -> RouteResult:
     target = graph.get_island(route[-1])
     fin_m, fin_deg = pose_error(truth_in(target, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
     success = completed and fin_m <= cfg.success_tol_m and fin_deg <= cfg.success_tol_deg
-    return RouteResult(tuple(route), tuple(edges), fin_m, fin_deg, success, robot.time_s)
+    return RouteResult(tuple(route), tuple(edges), fin_m, fin_deg, success, robot.time_s, end)
 
 
 def follow_route(
@@ -176,7 +178,7 @@ def follow_route(
     judge = _JudgedByTruth(graph, robot, c)
     islands = {i.id: i for i in graph.islands()}
     outcome = sim.run(follow_route_by_map(sim.drive, islands, edges, route[0], judge))
-    return _result(graph, route, robot, outcome.completed, judge.results, c)
+    return _result(graph, route, robot, outcome.completed, judge.results, c, outcome.end.value)
 
 
 def _baseline_trip(d: Drive, graph: TopoGraph, edges: list[Edge], robot: SimRobot,

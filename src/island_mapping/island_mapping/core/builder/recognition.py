@@ -29,6 +29,7 @@ from island_mapping.core.builder.geometry import drive_clear, from_frame, to_fra
 from island_mapping.core.builder.inlier_field import InlierField
 from island_mapping.core.builder.links import Link, LinkGraph
 from island_mapping.core.builder.places import PlaceSearch
+from island_mapping.core.builder.revisit_config import RevisitConfig
 from island_mapping.core.builder.uncertainty import (
     between_covariance,
     in_frame,
@@ -106,6 +107,33 @@ class _Window:
     max_dth_rad: float
     step_m: float
     max_residual_m: float
+
+
+def search_window(rc: RevisitConfig, cand: _Candidate, star: bool) -> tuple[_Window, bool]:
+    """The search window around a candidate's estimate, and whether it exceeds the caps
+    (search_max_m / _deg, or the star's): with clip_search it is cut to them instead."""
+    sigmas = rc.star_search_sigmas if star else rc.search_sigmas
+    radius = max(sigmas * cand.sigma_m, rc.search_min_m)
+    dth = sigmas * cand.sigma_rad
+    max_m, max_deg = ((rc.star_search_max_m, rc.star_search_max_deg) if star
+                      else (rc.search_max_m, rc.search_max_deg))
+    too_wide = radius > max_m or dth > math.radians(max_deg)
+    if too_wide and rc.clip_search:
+        radius, dth, too_wide = min(radius, max_m), min(dth, math.radians(max_deg)), False
+    step = max(rc.search_step_m, radius / rc.star_search_cells) if star else rc.search_step_m
+    max_res = rc.star_max_residual_m if star else rc.max_residual_m
+    return _Window(radius, dth, step, max_res), too_wide
+
+
+def rival_window(rc: RevisitConfig, cand: _Candidate, max_dth_rad: float, star: bool) -> _Window:
+    """The wide window of a rival search around a candidate (rival_sigmas of its
+    position sigma, within search_min_m and rival_max_m)."""
+    radius = min(max(rc.rival_sigmas * cand.sigma_m, rc.search_min_m), rc.rival_max_m)
+    return _Window(
+        radius, max_dth_rad,
+        min(max(rc.search_step_m, radius / rc.star_search_cells), rc.rival_step_m),
+        rc.star_max_residual_m if star else rc.max_residual_m,
+    )
 
 
 class Recognizer:
@@ -239,7 +267,7 @@ class Recognizer:
         candidates = list(self._candidates(snap, islands))
         for cand in candidates:
             est = at.relative_to(cand.origin)  # the robot in the island frame, by odometry
-            win, too_wide = self._window(cand, star)
+            win, too_wide = search_window(self.config.revisit, cand, star)
             if math.hypot(est.x, est.y) > win.radius_m + rc.max_dock_m:
                 continue
             if too_wide:
@@ -347,22 +375,6 @@ class Recognizer:
             origin, sig_m, sig_th = min(self.estimates(iid, snap), key=lambda e: e[1])
             yield _Candidate(island, origin, sig_m, sig_th)
 
-    def _window(self, cand: _Candidate, star: bool) -> tuple[_Window, bool]:
-        """The search window around a candidate's estimate, and whether it exceeds the caps
-        (search_max_m / _deg, or the star's): with clip_search it is cut to them instead."""
-        rc = self.config.revisit
-        sigmas = rc.star_search_sigmas if star else rc.search_sigmas
-        radius = max(sigmas * cand.sigma_m, rc.search_min_m)
-        dth = sigmas * cand.sigma_rad
-        max_m, max_deg = ((rc.star_search_max_m, rc.star_search_max_deg) if star
-                          else (rc.search_max_m, rc.search_max_deg))
-        too_wide = radius > max_m or dth > math.radians(max_deg)
-        if too_wide and rc.clip_search:
-            radius, dth, too_wide = min(radius, max_m), min(dth, math.radians(max_deg)), False
-        step = max(rc.search_step_m, radius / rc.star_search_cells) if star else rc.search_step_m
-        max_res = rc.star_max_residual_m if star else rc.max_residual_m
-        return _Window(radius, dth, step, max_res), too_wide
-
     def _rival_fits(
         self, candidates: list[_Candidate], pts: FloatArray, at: Pose2D, chosen: int, star: bool,
     ) -> bool:
@@ -379,34 +391,21 @@ class Recognizer:
                 k * cand.sigma_m + rc.max_dock_m
             ):
                 continue
-            win = self._rival_window(
-                cand, min(k * cand.sigma_rad, math.radians(rc.star_search_max_deg)), star)
+            dth = min(k * cand.sigma_rad, math.radians(rc.star_search_max_deg))
+            win = rival_window(rc, cand, dth, star)
             # A rival's failed fits are not refusals of this recognition.
             if self._search(cand.island, pts, est, win, count_refusals=False) is not None:
                 return True
         return False
 
-    def _rival_window(self, cand: _Candidate, max_dth_rad: float, star: bool) -> _Window:
-        """The wide window of a rival search around a candidate (rival_sigmas of its
-        position sigma, within search_min_m and rival_max_m)."""
-        rc = self.config.revisit
-        radius = min(max(rc.rival_sigmas * cand.sigma_m, rc.search_min_m), rc.rival_max_m)
-        return _Window(
-            radius, max_dth_rad,
-            min(max(rc.search_step_m, radius / rc.star_search_cells), rc.rival_step_m),
-            rc.star_max_residual_m if star else rc.max_residual_m,
-        )
-
     def _turned_alias(
         self, cand: _Candidate, best: Recognition, pts: FloatArray, star: bool,
     ) -> bool:
-        """Does the chosen island fit the points as well turned by a quarter or a half turn,
-        once its heading uncertainty (rival_sigmas heading sigmas) exceeds an eighth of a turn?
-        A + junction or a square room mapped all round fits itself turned, and the fit inside a
-        clipped heading window may be the turned one. Every turn is tried: odometry's
-        systematic drift outgrows its sigmas. A place mapped in part is not caught (on
-        paper_fig4 a crossing whose island saw two of its arms was docked 91 deg off, 3.5
-        heading sigmas from odometry's estimate)."""
+        """Does the chosen island fit the points as well turned by a quarter or half turn, once
+        its heading uncertainty (rival_sigmas sigmas) exceeds 45 deg? A + junction mapped all
+        round fits itself turned, and a clipped heading window may hold the turned fit. Every
+        turn is tried: odometry's systematic drift outgrows its sigmas. (A place mapped in part
+        is not caught: on paper_fig4 a crossing was docked 91 deg off, 3.5 sigmas out.)"""
         rc = self.config.revisit
         k = rc.rival_sigmas
         if k <= 0 or not rc.turned_alias or k * cand.sigma_rad < _ALIAS_MIN_REACH_RAD:
@@ -414,7 +413,7 @@ class Recognizer:
         step = math.radians(rc.heading_step_deg)
         for turn in _ALIAS_TURNS_RAD:
             heading = best.pose.theta + turn
-            win = self._rival_window(cand, _ALIAS_STEPS * step, star)
+            win = rival_window(rc, cand, _ALIAS_STEPS * step, star)
             win = dataclasses.replace(win, radius_m=min(win.radius_m, rc.max_dock_m))
             alias = self._search(cand.island, pts, Pose2D(best.pose.x, best.pose.y, heading),
                                  win, count_refusals=False)

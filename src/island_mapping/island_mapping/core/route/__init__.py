@@ -6,7 +6,8 @@ Public API:
   `rotate_by`, `go_to`, `go_along_hall`, `execute_strategy`, `look_around` (motion);
 - `Fix`, `localize_multi`, `localize_and_dock`, `search_along_axis`, `unconstrained_axis_rad`
   (arrival);
-- `follow_route`, `route_edges`, `RouteObserver`, `TrustedArrivals`, `RouteOutcome` (follower).
+- `follow_route`, `route_edges`, `RouteObserver`, `TrustedArrivals`, `RouteOutcome`, `RouteEnd`
+  (follower).
 
 A generator yields one `(v, w)` per sensor period; its runner updates the shared `Sense` before
 resuming it (the simulated evaluation after a physics step, the explorer node per scan).
@@ -21,6 +22,7 @@ from island_mapping.core.route.arrival import (
 )
 from island_mapping.core.route.config import NavigateConfig, NavigateError
 from island_mapping.core.route.follower import (
+    RouteEnd,
     RouteObserver,
     RouteOutcome,
     TrustedArrivals,
@@ -49,6 +51,7 @@ __all__ = [
     "NavigateConfig",
     "NavigateError",
     "RouteDeviationError",
+    "RouteEnd",
     "RouteObserver",
     "RouteOutcome",
     "RouteTimeoutError",

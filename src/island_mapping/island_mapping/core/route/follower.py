@@ -17,6 +17,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Generator, Sequence
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Protocol
 
 from island_msgs_py.types import Edge, Island, Pose2D
@@ -26,9 +27,19 @@ from island_mapping.core.route.config import NavigateError
 from island_mapping.core.route.motion import (
     Command,
     Drive,
+    RouteDeviationError,
     RouteTimeoutError,
     execute_strategy,
 )
+
+
+class RouteEnd(StrEnum):
+    """How a followed route ended."""
+
+    COMPLETED = "completed"
+    ARRIVAL_REFUSED = "arrival_refused"  # the observer did not go on after an arrival
+    TIMED_OUT = "timed_out"  # a leg ran out of time (looking, or driving)
+    DEVIATED = "deviated"  # a Go step ended well short: a wall where the recorded way went on
 
 
 class RouteObserver(Protocol):
@@ -60,6 +71,7 @@ class RouteOutcome:
     edges_followed: int
     timed_out: bool
     last_fix: Fix | None
+    end: RouteEnd = RouteEnd.COMPLETED
 
 
 def route_edges(edges_by_pair: dict[tuple[int, int], Edge], route: Sequence[int]) -> list[Edge]:
@@ -94,7 +106,7 @@ def follow_route(
         last = yield from localize_and_dock(d, islands[source], Pose2D(0.0, 0.0, 0.0),
                                             observer.fixed)
         if not observer.arrived(None, last):
-            return RouteOutcome(False, 0, False, last)
+            return RouteOutcome(False, 0, False, last, RouteEnd.ARRIVAL_REFUSED)
         for e in edges:
             d.deadline_s = d.sense.t_s + c.max_edge_time_s
             yield from execute_strategy(d, e.strategy)
@@ -102,7 +114,9 @@ def follow_route(
                                                 observer.fixed)
             followed += 1
             if not observer.arrived(e, last):
-                return RouteOutcome(False, followed, False, last)
+                return RouteOutcome(False, followed, False, last, RouteEnd.ARRIVAL_REFUSED)
+    except RouteDeviationError:
+        return RouteOutcome(False, followed, True, last, RouteEnd.DEVIATED)
     except RouteTimeoutError:
-        return RouteOutcome(False, followed, True, last)
+        return RouteOutcome(False, followed, True, last, RouteEnd.TIMED_OUT)
     return RouteOutcome(True, followed, False, last)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from island_msgs_py.geometry import ranges_to_points, to_frame
-from island_msgs_py.hall_perception import HallPerceptionConfig, perceive
+from island_msgs_py.hall_perception import HallPerceptionConfig, Perception, perceive
 from island_msgs_py.types import ControlStrategy, FloatArray, Pose2D, PrimitiveKind, wrap_angle
 
 from island_mapping.core.route.config import NavigateConfig
@@ -51,6 +51,14 @@ _BACK_OFF_PERIODS = 40  # a back-off that moves nothing (held on both sides) giv
 _MIN_ROT_RATE_RADPS = 0.1
 # The hallway direction is taken from the walls when they are within this of the heading [rad].
 _WALL_TRUST_RAD = math.radians(25.0)
+# A gap ahead narrower than this is no doorway: the robot (0.5 m) would not pass [m].
+_DOORWAY_MIN_WIDTH_M = 0.6
+# Half the width the robot sweeps, with a margin: an echo nearer its centre line is in the way.
+_PATH_HALF_WIDTH_M = 0.35
+# How far past a jamb the unheard side is not taken for an open hallway [m].
+_JAMB_CLEAR_M = 1.0
+# Approach angle per metre off a jamb's lane [rad/m].
+_JAMB_GAIN_RAD_PER_M = 4.0
 
 
 class RouteTimeoutError(Exception):
@@ -157,7 +165,8 @@ def go_along_hall(d: Drive, distance_m: float) -> Generator[Command, None, float
     stop early at a wall ahead (an echo in the robot's path within 30 deg of the heading: a
     doorway's jamb heard on an oblique transducer is beside the path; in a doorway's
     passage, both sides nearer than passage_side_m, only the echo straight ahead, since the
-    jambs' corners echo on every oblique axis) or when the motion is blocked."""
+    jambs' corners echo on every oblique axis; before a doorway, `doorway_offset`, none) or
+    when the motion is blocked."""
     c = d.cfg
     travelled = 0.0
     last = d.sense.odom
@@ -165,28 +174,37 @@ def go_along_hall(d: Drive, distance_m: float) -> Generator[Command, None, float
     half_width = 0.5 * d.hall_width_m
     max_app = math.radians(c.max_approach_deg)
     backoffs = 0
+    jamb_until_m, lane = 0.0, 0.0  # travel [m] up to which a jamb's lane [m] is kept
+    start = last
     while travelled < distance_m - _GO_DONE_M:
         p = perceive(d.sense.ranges_m, d.sense.angles_rad, d.perception)
         o = d.sense.odom
         in_passage = p.left_dist_m < c.passage_side_m and p.right_dist_m < c.passage_side_m
-        if (p.front_free_m if in_passage else p.front_cone_m) < c.stop_distance_m:
+        gap = doorway_offset(d.sense.ranges_m, d.sense.angles_rad, c)
+        jamb = None if gap is not None else jamb_offset(d.sense.ranges_m, d.sense.angles_rad, c)
+        # Before a doorway its jambs are what the front transducers hear: nothing lies in the
+        # gap (`doorway_offset`), so the robot aims at its middle and only a contact stops it;
+        # one jamb in the path with the way straight ahead free, the robot steers past it.
+        passing = gap is not None or (jamb is not None and p.front_free_m >= c.stop_distance_m)
+        if not passing and (p.front_free_m if in_passage else p.front_cone_m) < (
+                c.stop_distance_m):
             break
-        if p.wall_angle_rad is not None and abs(p.wall_angle_rad) < _WALL_TRUST_RAD:
+        if not in_passage and p.wall_angle_rad is not None and abs(
+                p.wall_angle_rad) < _WALL_TRUST_RAD:  # a doorway's jambs are too short
             hold = wrap_angle(o.theta + p.wall_angle_rad)
-        use_left = math.isfinite(p.left_dist_m) and not p.left_open
-        use_right = math.isfinite(p.right_dist_m) and not p.right_open
-        offset = 0.0
-        if use_left and use_right:
-            offset = 0.5 * (p.left_dist_m - p.right_dist_m)
-            half_width = 0.5 * (p.left_dist_m + p.right_dist_m)
-        elif use_left and abs(p.left_dist_m - half_width) < c.one_wall_band_m:
-            offset = p.left_dist_m - half_width
-        elif use_right and abs(p.right_dist_m - half_width) < c.one_wall_band_m:
-            offset = half_width - p.right_dist_m
-        if not (use_left and use_right):  # a doorway ahead: aim at its middle
-            gap = doorway_offset(d.sense.ranges_m, d.sense.angles_rad, c)
-            offset = offset if gap is None else gap
-        approach = float(np.clip(c.k_lateral_rad_per_m * offset, -max_app, max_app))
+        side = o.relative_to(start).y  # across the way the Go started [m]
+        if jamb is not None:  # the lane that clears it, kept after the sonar loses the jamb
+            want = side + jamb
+            if travelled < jamb_until_m and (want - lane) * jamb < 0.0:
+                want = lane  # a lane further away is kept
+            jamb_until_m, lane = travelled + _JAMB_CLEAR_M, want
+        offset, half_width = _lateral_offset(p, half_width, gap, travelled >= jamb_until_m, c)
+        gain = c.k_lateral_rad_per_m
+        if gap is None and travelled < jamb_until_m:  # the lane, firmly: a jamb is cm off
+            offset, gain = lane - side, _JAMB_GAIN_RAD_PER_M
+        approach = float(np.clip(gain * offset, -max_app, max_app))
+        if jamb is not None:  # a jamb in the path: past it, turned away as far as allowed
+            approach = math.copysign(max_app, jamb)
         err = wrap_angle(hold + approach - o.theta)
         remaining = distance_m - travelled
         v = min(c.go_speed_mps, _APPROACH_GAIN_PER_S * remaining + _GO_FLOOR_MPS)
@@ -204,6 +222,25 @@ def go_along_hall(d: Drive, distance_m: float) -> Generator[Command, None, float
     return travelled
 
 
+def _lateral_offset(p: Perception, half_width: float, gap: float | None, one_wall: bool,
+                    c: NavigateConfig) -> tuple[float, float]:
+    """(where to aim across the heading [m, left positive], the hallway's half width [m]):
+    the middle between both walls; with one wall seen (and `one_wall`), half a hallway's
+    width from it when that near already; a doorway ahead's middle (`gap`) unless both walls
+    are seen. Just past a jamb `one_wall` is False: the side unheard may be the other jamb,
+    nearer than the sonar's shortest range."""
+    use_left = math.isfinite(p.left_dist_m) and not p.left_open
+    use_right = math.isfinite(p.right_dist_m) and not p.right_open
+    offset = 0.0
+    if use_left and use_right:
+        return 0.5 * (p.left_dist_m - p.right_dist_m), 0.5 * (p.left_dist_m + p.right_dist_m)
+    if one_wall and use_left and abs(p.left_dist_m - half_width) < c.one_wall_band_m:
+        offset = p.left_dist_m - half_width
+    elif one_wall and use_right and abs(p.right_dist_m - half_width) < c.one_wall_band_m:
+        offset = half_width - p.right_dist_m
+    return (offset if gap is None else gap), half_width
+
+
 def _back_off(d: Drive, metres: float) -> Motion:
     """Reverse straight by `metres` of odometric travel (off a wall the robot touched)."""
     start = d.sense.odom
@@ -219,7 +256,7 @@ def doorway_offset(ranges_m: FloatArray, angles_rad: FloatArray, c: NavigateConf
     """Where the middle of a narrow gap ahead lies across the heading (left positive) [m]: the
     nearest echoes on either side of the path within doorway_ahead_m ahead bound the gap; None
     unless both sides bound one narrower than doorway_max_width_m (a hallway is wider; its
-    walls centre the robot)."""
+    walls centre the robot) and wide enough for the robot (no echo lies inside the gap)."""
     r = np.asarray(ranges_m, dtype=np.float64)
     a = np.asarray(angles_rad, dtype=np.float64)
     ok = np.isfinite(r)
@@ -229,9 +266,28 @@ def doorway_offset(ranges_m: FloatArray, angles_rad: FloatArray, c: NavigateConf
     if left.size == 0 or right.size == 0:
         return None
     lo, hi = float(right.max()), float(left.min())
-    if hi - lo >= c.doorway_max_width_m:
+    if not _DOORWAY_MIN_WIDTH_M <= hi - lo < c.doorway_max_width_m:
         return None
     return 0.5 * (hi + lo)
+
+
+def jamb_offset(ranges_m: FloatArray, angles_rad: FloatArray, c: NavigateConfig
+                ) -> float | None:
+    """Where to aim across the heading (left positive) [m] to pass an echo in the robot's
+    path (within _PATH_HALF_WIDTH_M of its centre line, doorway_ahead_m ahead) on one side
+    only: a doorway's jamb, the other one unheard (a specular sonar hears a corner on one
+    oblique axis); None when no echo, or echoes on both sides, lie in the path."""
+    r = np.asarray(ranges_m, dtype=np.float64)
+    a = np.asarray(angles_rad, dtype=np.float64)
+    ok = np.isfinite(r)
+    x, y = r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])
+    near = (x > 0.1) & (x < c.doorway_ahead_m) & (np.abs(y) < _PATH_HALF_WIDTH_M)
+    left, right = y[near & (y >= 0.0)], y[near & (y < 0.0)]
+    if (left.size > 0 and right.size > 0) or left.size == right.size == 0:
+        return None
+    if left.size > 0:
+        return float(left.min()) - _PATH_HALF_WIDTH_M
+    return float(right.max()) + _PATH_HALF_WIDTH_M
 
 
 def execute_strategy(d: Drive, strategy: ControlStrategy) -> Motion:
