@@ -221,8 +221,9 @@ class ExplorerConfig:
     )
     retries_per_exit: int = field(
         default=1,
-        metadata={"help": "times an exit is tried again after a departure that got lost "
-                          "before it is marked blocked [-]"},
+        metadata={"help": "times an exit is tried again, once no other exit is left, after "
+                          "its exploration was stopped (stuck, or round a room) and the robot "
+                          "driven back, before it is marked blocked [-]"},
     )
     revisit_near_m: float = field(
         default=2.5,

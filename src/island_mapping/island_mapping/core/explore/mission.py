@@ -20,7 +20,6 @@ handover by no exit the builder knows, with everything driven from the island as
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass
@@ -54,6 +53,7 @@ from island_mapping.core.explore.planner import (
     unexplored_count,
 )
 from island_mapping.core.explore.record import MotionRecord
+from island_mapping.core.explore.watch import Deferred, StuckWatch
 from island_mapping.core.graph import TopoGraph, reverse_strategy, strategy_displacement
 from island_mapping.core.route import (
     Command,
@@ -171,6 +171,7 @@ class Explorer:
         self._seen: deque[tuple[float, FloatArray]] = deque()  # (t [s], echoes, odometry frame)
         self._drove = False  # the explorer answered the last scan
         self._blocked: set[tuple[int, int]] = set()  # marked by us, maybe not yet in the map
+        self._deferred = Deferred(self.cfg.retries_per_exit)
         self._side_sent: dict[int, list[Exit]] = {}  # side exits added by us, per island
         self.state = ExplorerState.WAITING
         self._here: int | None = None
@@ -178,9 +179,8 @@ class Explorer:
         self.reason = ""
         self._penalty: dict[frozenset[int], float] = {}  # edges whose arrival failed
         self.counts = {"exits_explored": 0, "exits_blocked": 0, "lost": 0, "returns": 0,
-                       "retreats": 0,
-                       "arrivals": 0, "untrusted_arrivals": 0, "side_exits_added": 0,
-                       "side_exits_explored": 0}
+                       "retreats": 0, "arrivals": 0, "untrusted_arrivals": 0,
+                       "side_exits_added": 0, "side_exits_explored": 0, "exits_deferred": 0}
 
     # ----- inputs -----
 
@@ -239,8 +239,11 @@ class Explorer:
             yield from self._await_map(here.island_id)
             extra = (known_space_costs(self.graph, here.island_id, self.cfg.novelty)
                      if self.cfg.novelty.enabled else None)
-            target = nearest_unexplored(self.graph, here.island_id, self._blocked, extra,
-                                        self._penalty)
+            for skip in self._deferred.skips(self._blocked):  # given-up exits last
+                target = nearest_unexplored(self.graph, here.island_id, skip, extra,
+                                            self._penalty)
+                if target is not None:
+                    break
             if target is None:
                 self.state, self.reason = ExplorerState.DONE, "no unexplored exit left"
                 self._target = None
@@ -424,7 +427,7 @@ class Explorer:
         self._follower = ControlStrategy(())
         t0 = self._sense.t_s
         watch = OpeningWatch(self.cfg, self._since_dock.strategy())
-        stuck = _StuckWatch(self.cfg.stuck_s, self.cfg.stuck_m, self._sense)
+        stuck = StuckWatch(self.cfg.stuck_s, self.cfg.stuck_m, self._sense)
         walled_t = t0  # when both sides were last walls
         edges: list[Edge] = []
         while True:
@@ -512,8 +515,9 @@ class Explorer:
                                                self.cfg.return_max_shift_m)
         except RouteTimeoutError:
             fix = None
-        if exit_index is not None:
+        if exit_index is not None and self._deferred.give_up((here.island_id, exit_index)):
             self._mark_blocked(here.island_id, exit_index)
+        self.counts["exits_deferred"] = self._deferred.deferred
         if fix is None or not fix.trusted:
             return (yield from self._lost(here))
         return self._dock(here.island_id, fix)
@@ -542,20 +546,6 @@ class Explorer:
         self._blocked.add((island_id, exit_index))
         self.counts["exits_blocked"] += 1
         self._requests.append(ExitUpdate(island_id, exit_index, ExitState.BLOCKED))
-
-
-class _StuckWatch:
-    """True once the odometric position has stayed within `radius_m` of where it was for
-    `window_s` (a star turns in place for less; a robot pushing at a door jamb does not)."""
-
-    def __init__(self, window_s: float, radius_m: float, sense: Sense) -> None:
-        self.window_s, self.radius_m = window_s, radius_m
-        self._since, self._at = sense.t_s, sense.odom
-
-    def update(self, sense: Sense) -> bool:
-        if math.hypot(sense.odom.x - self._at.x, sense.odom.y - self._at.y) > self.radius_m:
-            self._since, self._at = sense.t_s, sense.odom
-        return sense.t_s - self._since >= self.window_s
 
 
 def _exit(island: Island, index: int) -> Exit:
