@@ -180,8 +180,9 @@ def go_along_hall(d: Drive, distance_m: float) -> Generator[Command, None, float
         p = perceive(d.sense.ranges_m, d.sense.angles_rad, d.perception)
         o = d.sense.odom
         in_passage = p.left_dist_m < c.passage_side_m and p.right_dist_m < c.passage_side_m
-        gap = doorway_offset(d.sense.ranges_m, d.sense.angles_rad, c)
-        jamb = None if gap is not None else jamb_offset(d.sense.ranges_m, d.sense.angles_rad, c)
+        pts = ranges_to_points(d.sense.ranges_m, d.sense.angles_rad)  # robot frame
+        gap = doorway_offset(pts, c)
+        jamb = None if gap is not None else jamb_offset(pts, c)
         # Before a doorway its jambs are what the front transducers hear: nothing lies in the
         # gap (`doorway_offset`), so the robot aims at its middle and only a contact stops it;
         # one jamb in the path with the way straight ahead free, the robot steers past it.
@@ -251,16 +252,13 @@ def _back_off(d: Drive, metres: float) -> Motion:
     yield from step(d, 0.0, 0.0)
 
 
-def doorway_offset(ranges_m: FloatArray, angles_rad: FloatArray, c: NavigateConfig
-                   ) -> float | None:
+def doorway_offset(pts: FloatArray, c: NavigateConfig) -> float | None:
     """Where the middle of a narrow gap ahead lies across the heading (left positive) [m]: the
-    nearest echoes on either side of the path within doorway_ahead_m ahead bound the gap; None
-    unless both sides bound one narrower than doorway_max_width_m (a hallway is wider; its
-    walls centre the robot) and wide enough for the robot (no echo lies inside the gap)."""
-    r = np.asarray(ranges_m, dtype=np.float64)
-    a = np.asarray(angles_rad, dtype=np.float64)
-    ok = np.isfinite(r)
-    x, y = r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])
+    nearest echoes (`pts`, robot frame, (K, 2) [m]) on either side of the path within
+    doorway_ahead_m ahead bound the gap; None unless both sides bound one narrower than
+    doorway_max_width_m (a hallway is wider; its walls centre the robot) and wide enough for
+    the robot (no echo lies inside the gap)."""
+    x, y = pts[:, 0], pts[:, 1]
     ahead = (x > 0.1) & (x < c.doorway_ahead_m) & (np.abs(y) < c.doorway_max_width_m)
     left, right = y[ahead & (y > 0.0)], y[ahead & (y < 0.0)]
     if left.size == 0 or right.size == 0:
@@ -271,16 +269,12 @@ def doorway_offset(ranges_m: FloatArray, angles_rad: FloatArray, c: NavigateConf
     return 0.5 * (hi + lo)
 
 
-def jamb_offset(ranges_m: FloatArray, angles_rad: FloatArray, c: NavigateConfig
-                ) -> float | None:
-    """Where to aim across the heading (left positive) [m] to pass an echo in the robot's
-    path (within _PATH_HALF_WIDTH_M of its centre line, doorway_ahead_m ahead) on one side
-    only: a doorway's jamb, the other one unheard (a specular sonar hears a corner on one
-    oblique axis); None when no echo, or echoes on both sides, lie in the path."""
-    r = np.asarray(ranges_m, dtype=np.float64)
-    a = np.asarray(angles_rad, dtype=np.float64)
-    ok = np.isfinite(r)
-    x, y = r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])
+def jamb_offset(pts: FloatArray, c: NavigateConfig) -> float | None:
+    """Where to aim across the heading (left positive) [m] to pass an echo (`pts`, robot
+    frame) in the robot's path (within _PATH_HALF_WIDTH_M of its centre line, doorway_ahead_m
+    ahead) on one side only: a doorway's jamb, the other one unheard (a specular sonar hears a
+    corner on one oblique axis); None when no echo, or echoes on both sides, lie in the path."""
+    x, y = pts[:, 0], pts[:, 1]
     near = (x > 0.1) & (x < c.doorway_ahead_m) & (np.abs(y) < _PATH_HALF_WIDTH_M)
     left, right = y[near & (y >= 0.0)], y[near & (y < 0.0)]
     if (left.size > 0 and right.size > 0) or left.size == right.size == 0:
