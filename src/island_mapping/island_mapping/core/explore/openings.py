@@ -237,7 +237,7 @@ def drive_straight(d: Drive, strategy: ControlStrategy) -> Generator[Command, No
         if s.kind is PrimitiveKind.GO:
             yield from go_to(d, d.sense.odom.compose(Pose2D(s.metres, 0.0, 0.0)))
         else:
-            yield from rotate_by(d, math.radians(s.value if s.value <= 180 else s.value - 360))
+            yield from rotate_by(d, s.radians)
 
 
 def seek_side(d: Drive, side: ExitSide, max_m: float, into_m: float
