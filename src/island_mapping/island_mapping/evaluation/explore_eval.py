@@ -22,7 +22,7 @@ from island_sim.core.world_loader import load_world
 
 from island_mapping.core.builder import event_to_dict
 from island_mapping.core.graph import TopoGraph
-from island_mapping.core.route import NavigateError
+from island_mapping.core.route import NavigateError, RouteEnd
 from island_mapping.evaluation.explore import explore
 from island_mapping.evaluation.explore_exits import explore_by_exits
 from island_mapping.evaluation.navigate import SimSetup
@@ -91,7 +91,8 @@ def measure_exploration(spec: str, policy: Policy, seed: int, sim_s: float, rout
             ev = evaluate_routes(graph, setup, routes, np.random.default_rng(seed), origins_odom)
             pairs = [(a, b, r.success) for (a, b), r in zip(ev.pairs, ev.islands, strict=True)]
             for r in ev.islands:
-                key = r.end if r.success or r.end != "completed" else "off_target"
+                key = r.end.value if r.success or r.end is not RouteEnd.COMPLETED else (
+                    "off_target")
                 ends[key] = ends.get(key, 0) + 1
         except NavigateError:
             pairs = []

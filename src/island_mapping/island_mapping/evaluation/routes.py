@@ -38,6 +38,7 @@ from island_mapping.core.route import (
     Fix,
     NavigateConfig,
     NavigateError,
+    RouteEnd,
     RouteTimeoutError,
     execute_strategy,
     go_to,
@@ -76,7 +77,7 @@ class RouteResult:
     final_error_deg: float
     success: bool
     sim_time_s: float
-    end: str = "completed"  # core.route.RouteEnd: how the route ended
+    end: RouteEnd = RouteEnd.COMPLETED  # how the route ended
 
 
 @dataclass(frozen=True)
@@ -150,7 +151,7 @@ class _JudgedByTruth:
 
 
 def _result(graph: TopoGraph, route: Sequence[int], robot: SimRobot, completed: bool,
-            edges: list[EdgeResult], cfg: NavigateConfig, end: str = "completed"
+            edges: list[EdgeResult], cfg: NavigateConfig, end: RouteEnd = RouteEnd.COMPLETED
             ) -> RouteResult:
     target = graph.get_island(route[-1])
     fin_m, fin_deg = pose_error(truth_in(target, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
@@ -178,7 +179,7 @@ def follow_route(
     judge = _JudgedByTruth(graph, robot, c)
     islands = {i.id: i for i in graph.islands()}
     outcome = sim.run(follow_route_by_map(sim.drive, islands, edges, route[0], judge))
-    return _result(graph, route, robot, outcome.completed, judge.results, c, outcome.end.value)
+    return _result(graph, route, robot, outcome.completed, judge.results, c, outcome.end)
 
 
 def _baseline_trip(d: Drive, graph: TopoGraph, edges: list[Edge], robot: SimRobot,
