@@ -80,21 +80,3 @@ def register_look(
     ):
         return guess
     return res.pose
-
-
-def settled_origin(cfg: BuilderConfig, model: LineModel, points_robot: FloatArray, odom: Pose2D,
-                   origin: Pose2D) -> Pose2D | None:
-    """Where a new island's origin lies in the odometry frame, by localizing the robot (at
-    odometric pose `odom`, back on the origin after the star) in the island's model from where
-    odometry says it is: the star's turns drifted odometry's heading (3-6 deg seen), and every
-    strategy from the island starts from that heading. None when the fit did not converge with
-    a small residual, or moved more than verify_offset_m / probe_turn_deg from the guess."""
-    guess = odom.relative_to(origin)
-    res = localize(model, points_robot, guess, cfg.localize)
-    shift = math.hypot(res.pose.x - guess.x, res.pose.y - guess.y)
-    if not res.converged or res.residual_m > cfg.revisit.max_residual_m or (
-        shift > cfg.verify_offset_m
-        or abs(wrap_angle(res.pose.theta - guess.theta)) > math.radians(cfg.probe_turn_deg)
-    ):
-        return None
-    return odom.compose(res.pose.inverse())

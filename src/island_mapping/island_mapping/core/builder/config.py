@@ -304,12 +304,6 @@ class BuilderConfig:
         metadata={"help": "with accept_on_legs, scans taken this near the chosen origin are "
                           "what the new-island check localizes [m]"},
     )
-    settle_origin: bool = field(
-        default=False,
-        metadata={"help": "back on a new island's origin after the star, localize the robot "
-                          "in the island's model and correct where the origin lies in the "
-                          "odometry frame (the star's turns drift odometry's heading) [bool]"},
-    )
     drive_stall_s: float = field(
         default=8.0,
         metadata={"help": "a drive (a star leg, back to an opening's middle, onto an origin, "

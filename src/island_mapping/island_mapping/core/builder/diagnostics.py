@@ -49,7 +49,6 @@ class Diagnostics:
         default_factory=lambda: {o.value: 0 for o in ProbeOutcome}
     )
     drive_stalls: int = 0  # drives onto a point that ended where the robot pushed at a wall
-    settled: int = 0  # new islands' origins corrected by a localization after the star
 
     def refuse(self, reason: Refusal) -> None:
         """Count one refusal."""

@@ -28,7 +28,7 @@ from island_msgs_py.types import (
 )
 
 from island_mapping.core.builder import motion, star
-from island_mapping.core.builder.checks import localizes_back, settled_origin
+from island_mapping.core.builder.checks import localizes_back
 from island_mapping.core.builder.config import BuilderConfig, BuilderError
 from island_mapping.core.builder.diagnostics import Diagnostics, ProbeOutcome
 from island_mapping.core.builder.docking import Dock, dock_step
@@ -89,8 +89,6 @@ class _State(StrEnum):
     IDLE = "idle"  # managed mode: at an island, the explorer drives (core.builder.hooks)
 
 
-# size-ok(file): one short method per state and transition (star, probe, return, entry, leave,
-# dock); the decisions are functions of star, opening, recognition, hooks and checks
 # size-ok: one method per state and transition; the decisions are already functions
 class IslandBuilder(BuilderView):
     """The island builder state machine (see the module docstring).
@@ -499,24 +497,8 @@ class IslandBuilder(BuilderView):
             self._openings.entry.leave()
             self._state = _State.LEAVING
             return STOP
-        if accepted and self.config.settle_origin:
-            att.anchor = self._settled(att.anchor)
         self._hand_back(att.anchor, self.ledger.last_island if accepted else None)
         return STOP
-
-    def _settled(self, origin: Pose2D) -> Pose2D:
-        """The new island's origin in the odometry frame, settled by a localization in its
-        model (`checks.settled_origin`); the recognizer and the ledger learn it."""
-        island, odom, scan = self.ledger.last_island, self._odom, self._last_scan
-        settled = None if island is None or odom is None or scan is None else settled_origin(
-            self.config, island.model, ranges_to_points(*scan, Pose2D(0.0, 0.0, 0.0)), odom,
-            origin)
-        if settled is None or island is None:
-            return origin
-        self.ledger.island_origins_odom[island.id] = settled
-        self.recognizer.remember(island.id, settled, self._track.cov.copy())
-        self.diagnostics.settled += 1
-        return settled
 
     def _hand_back(self, origin: Pose2D, island: Island | None) -> None:
         """Back to the follower at `origin` (odometry); at `island`'s origin its record
