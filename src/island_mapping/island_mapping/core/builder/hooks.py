@@ -55,10 +55,11 @@ from island_mapping.core.builder.opening_config import OpeningConfig
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition
 from island_mapping.core.builder.star import Attempt
 
-ExitFinder = Callable[[FloatArray, FloatArray, FloatArray, float | None, OpeningExit | None],
-                      tuple[Exit, ...]]
+ExitFinder = Callable[[FloatArray, FloatArray, FloatArray, float | None, FloatArray,
+                       OpeningExit | None], tuple[Exit, ...]]
 """(segments (N, 4), echo points (M, 2), driven paths (K, 4), arrival heading [rad] or None,
-the opening the island stands in or None), all in the island frame [m] -> the island's exits
+the star's readings (R, 4: where from [m], bearing [rad], range [m], inf for no echo), the
+opening the island stands in or None), all in the island frame [m] -> the island's exits
 (all unexplored)."""
 
 RevisitGate = Callable[[Recognition, PoseSnapshot, Island, bool], Refusal | None]
@@ -165,11 +166,11 @@ def _along(path: FloatArray, dist_m: float) -> FloatArray:
 
 
 def exit_evidence(att: Attempt, model: LineModel, shift: Pose2D, approach: FloatArray
-                  ) -> tuple[FloatArray, FloatArray, FloatArray, float | None]:
+                  ) -> tuple[FloatArray, FloatArray, FloatArray, float | None, FloatArray]:
     """The star's evidence for `ExitFinder` in the island frame (the origin at `shift` in
     the anchor frame, same heading): the model, the star's echoes, the legs driven and the
-    approach polyline (anchor frame, from `approach_path`), and the direction the robot came
-    from (None for island 0)."""
+    approach polyline (anchor frame, from `approach_path`), the direction the robot came
+    from (None for island 0), and the star's readings (`Attempt.looks`)."""
     off = np.array([shift.x, shift.y])
     pts = concat(att.points) - off if att.points else np.zeros((0, 2))
     driven = [[-off[0], -off[1], length * math.cos(b) - off[0], length * math.sin(b) - off[1]]
@@ -179,7 +180,8 @@ def exit_evidence(att: Attempt, model: LineModel, shift: Pose2D, approach: Float
         driven.extend([*a, *b] for a, b in itertools.pairwise(way))
     arrival = None if att.first else arrival_heading(way)
     segs = np.asarray(driven, dtype=np.float64).reshape(-1, 4)
-    return model.segments, pts, segs, arrival
+    looks = att.looks() - np.array([off[0], off[1], 0.0, 0.0])
+    return model.segments, pts, segs, arrival, looks
 
 
 def facing_exit(island: Island, heading_rad: float, within_deg: float) -> Exit | None:

@@ -160,7 +160,7 @@ class IslandBuilder(BuilderView):
         near = r <= self.config.revisit.max_range_m  # far sonar echoes are wide cones
         near_pts = ranges_to_points(r[near], a[near], self._odom)  # for recognising known islands
         if self._state is _State.STAR and self._attempt is not None:
-            self._attempt.add_scan(pts, near_pts, self._odom, self.config.centre_radius_m)
+            self._attempt.add_scan(pts, near_pts, self._odom, self.config.centre_radius_m, (r, a))
         look = self._look()
         if look is not None:
             if look.phase is LookPhase.LOOK:
@@ -326,7 +326,7 @@ class IslandBuilder(BuilderView):
         self._attempt = Attempt.begin(
             self._odom, self._truth, self._track.cov, eps, bound, first, self._ahead_free_m(),
             straight_behind_m(self._strategy),
-            to_frame(ranges_to_points(*self._last_scan, self._odom), self._odom))
+            to_frame(ranges_to_points(*self._last_scan, self._odom), self._odom), self._last_scan)
         self._track.anchor_star()
         self._state = _State.STAR
         self._emit(EventKind.ATTEMPT_STARTED, anchor_odom=self._odom, bound=bound)

@@ -79,12 +79,17 @@ class Attempt:
     near_points: list[FloatArray] = field(default_factory=list)
     # Where each scan of `points` was taken, in the anchor frame: (1, 2) each [m].
     scan_at: list[FloatArray] = field(default_factory=list)
+    # Each scan's readings, echo or not: where the robot was plus the unit vector along the
+    # reading's bearing, (K, 2) in the anchor frame [m]; and their ranges (K,) (inf: no echo).
+    look_ends: list[FloatArray] = field(default_factory=list)
+    look_ranges: list[FloatArray] = field(default_factory=list)
     leg: int = 0
     phase: LegPhase = LegPhase.TURN
     leg_length_m: float = 0.0
     legs_done: list[tuple[float, float]] = field(default_factory=list)
-    # Where the current leg's scans begin in points, centre_points, near_points and scan_at.
-    leg_marks: tuple[int, ...] = (0, 0, 0, 0)
+    # Where the current leg's scans begin in points, centre_points, near_points, scan_at and
+    # look_ends.
+    leg_marks: tuple[int, ...] = (0, 0, 0, 0, 0)
     # Heading variance of the pose in the anchor frame after the last leg registration, and
     # odometry's relative heading variance then [rad^2].
     heading_var_rad2: float = 0.0
@@ -101,33 +106,54 @@ class Attempt:
     @staticmethod
     def begin(anchor: Pose2D, truth: Pose2D | None, cov: FloatArray, epsilon_m: float,
               bound: float, first: bool, ahead_free_m: float, behind_free_m: float,
-              first_points: FloatArray) -> Attempt:
+              first_points: FloatArray, first_scan: tuple[FloatArray, FloatArray]) -> Attempt:
         """An attempt anchored at the odometric pose `anchor` (truth: the true pose, for
         evaluation; cov: the odometry's covariance there) with the scan seen there
-        (`first_points`, robot frame = anchor frame)."""
+        (`first_points`, robot frame = anchor frame; `first_scan`: its ranges [m] and
+        robot-frame angles [rad])."""
         att = Attempt(anchor, truth, cov.copy(), epsilon_m, bound, first)
         att.ahead_free_m, att.behind_free_m = ahead_free_m, behind_free_m
         att.points.append(first_points)
         att.centre_points.append(first_points)
         att.scan_at.append(np.zeros((1, 2)))
+        att._keep_looks(first_scan, _ANCHOR)
         return att
 
+    def _keep_looks(self, scan: tuple[FloatArray, FloatArray], rel: Pose2D) -> None:
+        ranges, angles = scan
+        bearing = np.asarray(angles, dtype=np.float64) + rel.theta
+        ends = np.column_stack([rel.x + np.cos(bearing), rel.y + np.sin(bearing)])
+        self.look_ends.append(ends)
+        self.look_ranges.append(np.asarray(ranges, dtype=np.float64).copy())
+
     def add_scan(self, points_odom: FloatArray, near_odom: FloatArray, odom: Pose2D,
-                 centre_radius_m: float) -> None:
+                 centre_radius_m: float, scan: tuple[FloatArray, FloatArray]) -> None:
         """Keep a scan's points (odometry frame, taken at `odom`) in the anchor frame: all of
-        them, those seen from the origin (within centre_radius_m [m]), the near echoes."""
+        them, those seen from the origin (within centre_radius_m [m]), the near echoes; and
+        its readings (`scan`: ranges [m], inf for no echo, at robot-frame angles [rad])."""
         local = to_frame(points_odom, self.anchor)
         self.points.append(local)
         rel = odom.relative_to(self.anchor)
         self.scan_at.append(np.array([[rel.x, rel.y]]))
+        self._keep_looks(scan, rel)
         if math.hypot(rel.x, rel.y) <= centre_radius_m:
             self.centre_points.append(local)
         self.near_points.append(to_frame(near_odom, self.anchor))
 
     def point_lists(self) -> tuple[list[FloatArray], ...]:
-        """points, centre_points, near_points, scan_at: the scans kept in the anchor frame
-        and where they were taken (the order of leg_marks)."""
-        return self.points, self.centre_points, self.near_points, self.scan_at
+        """points, centre_points, near_points, scan_at, look_ends: the scans kept in the
+        anchor frame and where they were taken (the order of leg_marks)."""
+        return self.points, self.centre_points, self.near_points, self.scan_at, self.look_ends
+
+    def looks(self) -> FloatArray:
+        """Every reading kept, (K, 4) in the anchor frame: where the robot was [m], the
+        reading's bearing [rad] and range [m] (inf: no echo)."""
+        if not self.look_ends:
+            return np.zeros((0, 4))
+        at = concat([np.repeat(w, len(e), axis=0)
+                     for w, e in zip(self.scan_at, self.look_ends, strict=True)])
+        d = concat(self.look_ends) - at
+        return np.column_stack([at, np.arctan2(d[:, 1], d[:, 0]), concat(self.look_ranges)])
 
     def seen_from(self, at: Pose2D, radius_m: float) -> FloatArray:
         """The points of the scans taken within radius_m of `at` (anchor frame) [m]."""

@@ -103,17 +103,44 @@ class ExitConfig:
                           "theta 0 (into the opening); the hallway it stands off is its arrival "
                           "and a side exit [deg]"},
     )
+    look_through: bool = field(
+        default=True,
+        metadata={"help": "a lane straight out along an island axis is free, whatever the model "
+                          "and echoes say, when the star's readings along it see past reach_m "
+                          "(look_* below) [bool]"},
+    )
+    look_from_m: float = field(
+        default=0.75,
+        metadata={"help": "readings taken within this of the origin are looked through [m]"},
+    )
+    look_deg: float = field(
+        default=8.0,
+        metadata={"help": "readings whose bearing lies within this of the axis look along it "
+                          "[deg]"},
+    )
+    look_min_readings: int = field(
+        default=3,
+        metadata={"help": "readings along the axis with no echo, or one beyond reach_m plus "
+                          "clearance_m, that make it free [-]"},
+    )
+    look_min_fraction: float = field(
+        default=0.25,
+        metadata={"help": "... and their least share of the readings along it [-]"},
+    )
 
     def __post_init__(self) -> None:
         _check_numbers(self, ("heading_step_deg", "clearance_m", "reach_m", "evidence_range_m",
+                              "look_from_m", "look_deg", "look_min_fraction",
                               "merge_deg", "min_width_m", "entry_m", "opening_ahead_deg",
                               "open_width_m", "gap_line_m", "gap_line_deg"),
                        ("driven_clearance_m", "arrival_match_deg", "lane_offset_m"))
-        if isinstance(self.min_points, bool) or not isinstance(self.min_points, int) or (
-            self.min_points < 1
-        ):
-            raise ExploreError(f"ExitConfig.min_points: expected an int >= 1, got "
-                               f"{self.min_points!r}")
+        for name in ("min_points", "look_min_readings"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ExploreError(f"ExitConfig.{name}: expected an int >= 1, got {v!r}")
+        if self.look_min_fraction > 1.0:
+            raise ExploreError(f"ExitConfig.look_min_fraction: expected at most 1, got "
+                               f"{self.look_min_fraction!r}")
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ a side corridor's mouth): where to stand before it and which way to drive throug
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from island_msgs_py.geometry import point_segment_distance
@@ -49,22 +49,28 @@ class ExitEvidence:
 
     segments: (N, 4) the line model; points: (M, 2) echo points; driven: (K, 4) straight paths
     the robot drove (star legs, the approach): free by construction; arrival_rad: the direction
-    from the origin toward where the robot came from (None: it did not arrive, island 0).
+    from the origin toward where the robot came from (None: it did not arrive, island 0);
+    looks: (R, 4) the star's readings, echo or not: where the robot was [m], the bearing [rad]
+    and the range [m] (inf: no echo), for `look_through`.
     """
 
     segments: FloatArray
     points: FloatArray
     driven: FloatArray
     arrival_rad: float | None = None
+    looks: FloatArray = field(default_factory=lambda: np.zeros((0, 4)))
 
     def __post_init__(self) -> None:
-        for name, cols in (("segments", 4), ("points", 2), ("driven", 4)):
+        for name, cols in (("segments", 4), ("points", 2), ("driven", 4), ("looks", 4)):
             a = np.asarray(getattr(self, name), dtype=np.float64)
             if a.size == 0:
                 a = np.zeros((0, cols))
-            if a.ndim != 2 or a.shape[1] != cols or not np.all(np.isfinite(a)):
+            finite = a[:, :3] if name == "looks" and a.ndim == 2 else a
+            if a.ndim != 2 or a.shape[1] != cols or not np.all(np.isfinite(finite)):
                 raise ExploreError(f"ExitEvidence.{name}: expected a finite (N, {cols}) array, "
                                    f"got shape {a.shape}")
+            if name == "looks" and not np.all(a[:, 3] > 0.0):  # inf is no echo; NaN fails
+                raise ExploreError("ExitEvidence.looks: ranges must be > 0 (inf: no echo)")
             object.__setattr__(self, name, a)
         if self.arrival_rad is not None and not math.isfinite(self.arrival_rad):
             raise ExploreError(f"ExitEvidence.arrival_rad: not finite ({self.arrival_rad})")
@@ -149,11 +155,35 @@ def free_lanes(ev: ExitEvidence, cfg: ExitConfig) -> list[Lane]:
     lanes = []
     for hk, h in enumerate(headings):
         free = hits[hk] == 0
+        if hk < len(_AXES_RAD) and not free[len(offsets) // 2] and look_through(ev, h, cfg):
+            lanes.append(Lane(float(h), 0.0, 2.0 * cfg.clearance_m))
         for first, length in _linear_runs(free):
             lo, hi = offsets[first], offsets[first + length - 1]
             lanes.append(Lane(float(h), float(0.5 * (lo + hi)),
                               float(hi - lo) + 2.0 * cfg.clearance_m))
     return lanes
+
+
+def look_through(ev: ExitEvidence, heading_rad: float, cfg: ExitConfig) -> bool:
+    """Does the star see straight out along `heading_rad` (an island axis) past reach_m? At
+    least look_min_readings (and look_min_fraction) of the readings taken within look_from_m
+    of the origin with a bearing within look_deg of it report no echo, or one beyond reach_m
+    plus clearance_m ahead of the origin. A sonar reports the nearest echo anywhere in its wide cone as if on its
+    axis, so a door jamb beside a hallway puts echoes, and model lines, across the hallway
+    ahead; a wall across it faces these readings and echoes in every one of them. Off by
+    look_through."""
+    if not cfg.look_through or ev.looks.shape[0] == 0:
+        return False
+    lk = ev.looks
+    near = np.hypot(lk[:, 0], lk[:, 1]) <= cfg.look_from_m
+    off = np.angle(np.exp(1j * (lk[:, 2] - heading_rad)))
+    along = near & (np.abs(off) <= math.radians(cfg.look_deg))
+    # How far ahead of the origin, along the axis, each reading saw free [m].
+    ahead = lk[:, 0] * math.cos(heading_rad) + lk[:, 1] * math.sin(heading_rad) + np.where(
+        np.isinf(lk[:, 3]), np.inf, lk[:, 3] * np.cos(off))
+    far = int(np.count_nonzero(along & (ahead > cfg.reach_m + cfg.clearance_m)))
+    total = int(np.count_nonzero(along))
+    return far >= cfg.look_min_readings and far >= cfg.look_min_fraction * total
 
 
 def _linear_runs(flags: np.ndarray) -> list[tuple[int, int]]:

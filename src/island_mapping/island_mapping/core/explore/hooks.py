@@ -89,8 +89,9 @@ def explorer_hooks(cfg: ExplorerConfig, graph: Callable[[], TopoGraph]) -> Build
     gate (module docstring); `graph` returns the latest map (the exits' states)."""
 
     def exits(segments: FloatArray, points: FloatArray, driven: FloatArray,
-              arrival_rad: float | None, opening: OpeningExit | None) -> tuple[Exit, ...]:
-        ev = ExitEvidence(segments, points, driven, arrival_rad)
+              arrival_rad: float | None, looks: FloatArray, opening: OpeningExit | None
+              ) -> tuple[Exit, ...]:
+        ev = ExitEvidence(segments, points, driven, arrival_rad, looks)
         found = through_gates(find_exits(ev, cfg.exit), ev, cfg.exit)
         return found if opening is None else opening_exits(found, ev, opening, cfg.exit)
 
