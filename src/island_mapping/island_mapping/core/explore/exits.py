@@ -168,10 +168,10 @@ def look_through(ev: ExitEvidence, heading_rad: float, cfg: ExitConfig) -> bool:
     """Does the star see straight out along `heading_rad` (an island axis) past reach_m? At
     least look_min_readings (and look_min_fraction) of the readings taken within look_from_m
     of the origin with a bearing within look_deg of it report no echo, or one beyond reach_m
-    plus clearance_m ahead of the origin. A sonar reports the nearest echo anywhere in its wide cone as if on its
-    axis, so a door jamb beside a hallway puts echoes, and model lines, across the hallway
-    ahead; a wall across it faces these readings and echoes in every one of them. Off by
-    look_through."""
+    plus clearance_m ahead of the origin. A sonar reports the nearest echo anywhere in its
+    wide cone as if on its axis, so a door jamb beside a hallway puts echoes, and model lines,
+    across the hallway ahead; a wall across it faces these readings and echoes in every one
+    of them. Off by look_through."""
     if not cfg.look_through or ev.looks.shape[0] == 0:
         return False
     lk = ev.looks
