@@ -203,6 +203,17 @@ class ExplorerConfig:
                           "where odometry says the robot is counts as not converged (the robot "
                           "is then lost, not docked) [m]"},
     )
+    return_shortcut_m: float = field(
+        default=0.4,
+        metadata={"help": "driving back to the island left, the way out is taken without its "
+                          "loops: where it came back within this of a point passed "
+                          "return_loop_m earlier, the lap is skipped (0: the whole way) [m]"},
+    )
+    return_loop_m: float = field(
+        default=3.0,
+        metadata={"help": "see return_shortcut_m: the shortest stretch of the way that counts "
+                          "as a loop [m]"},
+    )
     exit_cap_s: float = field(
         default=300.0,
         metadata={"help": "sim time the builder may spend exploring one exit before the explorer "
@@ -345,10 +356,10 @@ class ExplorerConfig:
 
     def __post_init__(self) -> None:
         _check_numbers(self, ("exit_cap_s", "open_space_cap_s", "stuck_s", "stuck_m",
-                              "return_max_shift_m", "door_max_width_m",
+                              "return_max_shift_m", "door_max_width_m", "return_loop_m",
                               "door_through_m", "map_wait_s", "look_buffer_s", "revisit_near_m",
                               "revisit_max_mahalanobis2"),
-                       ("depart_min_free_m", "lane_snap_m"))
+                       ("depart_min_free_m", "lane_snap_m", "return_shortcut_m"))
         _check_numbers(self, ("side_min_width_m", "side_near_island_m", "side_merge_m",
                               "side_merge_deg", "side_chain_m", "side_search_m"),
                        ("side_max_turn_deg", "side_direct_m", "failed_edge_penalty_m"))

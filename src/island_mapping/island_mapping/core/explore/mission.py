@@ -52,7 +52,7 @@ from island_mapping.core.explore.planner import (
     route_edges,
     unexplored_count,
 )
-from island_mapping.core.explore.record import MotionRecord
+from island_mapping.core.explore.record import MotionRecord, without_loops
 from island_mapping.core.explore.watch import Deferred, StuckWatch
 from island_mapping.core.graph import TopoGraph, reverse_strategy, strategy_displacement
 from island_mapping.core.route import (
@@ -502,7 +502,8 @@ class Explorer:
         self.counts["returns"] += 1
         d = self._drive
         assert d is not None
-        way = ControlStrategy(self._since_dock.strategy().steps + self._follower.steps)
+        out = ControlStrategy(self._since_dock.strategy().steps + self._follower.steps)
+        way = without_loops(out, self.cfg.return_shortcut_m, self.cfg.return_loop_m)
         d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
         island = self.graph.get_island(here.island_id)
         try:
