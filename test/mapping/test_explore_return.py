@@ -3,7 +3,7 @@
 Office 11 seed 1 handed the robot over into a 4.5 x 4 m room beside its island; the hall
 follower ran round it for the whole 300 s cap, the explorer drove the record back lap by lap,
 ran out of time, and the lost robot was handed over again: the same 300 s, fourteen times, to
-the end of the run (7 islands in 7200 s). Public API: `core.explore.without_loops`.
+the end of the run (7 islands in 7200 s). Public API: `core.graph.without_loops`.
 """
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from __future__ import annotations
 import math
 
 import pytest
-from island_mapping.core.explore import ExploreError, ExplorerConfig, without_loops
-from island_mapping.core.graph import reverse_strategy, strategy_displacement
+from island_mapping.core.explore import ExploreError, ExplorerConfig
+from island_mapping.core.graph import reverse_strategy, strategy_displacement, without_loops
 from island_msgs_py.types import ControlStrategy, PrimitiveKind, StrategyPrimitive
 
 GO, ROT = PrimitiveKind.GO, PrimitiveKind.ROT

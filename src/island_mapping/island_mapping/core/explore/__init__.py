@@ -6,7 +6,6 @@ Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public
 - `ExitEvidence`, `find_exits`, `arrival_exit`, `gate`, `free_lanes` (exits: where free space
   leads away from an island, in its frame);
 - `Target`, `nearest_unexplored`, `route_edges`, `unexplored_count` (planner);
-- `without_loops` (record: a way out without its laps, for the way back);
 - `known_space_costs` (novelty: the planner's extra cost of exits into space the map knows);
 - `plan_departure`, `DeparturePlan` (departure through an exit's gate);
 - `Explorer`, `ExplorerCommand`, `ExplorerState`, `ExplorerStatus`, `Docked`, `Handover`,
@@ -52,7 +51,6 @@ from island_mapping.core.explore.planner import (
     route_edges,
     unexplored_count,
 )
-from island_mapping.core.explore.record import without_loops
 
 __all__ = [
     "Abort",
@@ -82,5 +80,4 @@ __all__ = [
     "plan_departure",
     "route_edges",
     "unexplored_count",
-    "without_loops",
 ]

@@ -52,9 +52,14 @@ from island_mapping.core.explore.planner import (
     route_edges,
     unexplored_count,
 )
-from island_mapping.core.explore.record import MotionRecord, without_loops
+from island_mapping.core.explore.record import MotionRecord
 from island_mapping.core.explore.watch import Deferred, StuckWatch
-from island_mapping.core.graph import TopoGraph, reverse_strategy, strategy_displacement
+from island_mapping.core.graph import (
+    TopoGraph,
+    reverse_strategy,
+    strategy_displacement,
+    without_loops,
+)
 from island_mapping.core.route import (
     Command,
     Drive,

@@ -6,7 +6,7 @@ Public API (import from `island_mapping.core.graph`; the submodules are implemen
   pair; every change validated first, `GraphError` naming the island/edge otherwise), `PutMode`;
 - errors (`errors.py`): `GraphError`, `NoRouteError`;
 - strategy algebra (`strategy.py`): `normalize_strategy`, `reverse_strategy`,
-  `strategy_displacement`;
+  `strategy_displacement`, `without_loops`;
 - planning (`planning.py`): `Route`, `Backend`, `SCIPY_MIN_ISLANDS`, `ROUTE_TREE_CACHE_SIZE`
   (`TopoGraph.plan_route` is the entry point);
 - layout (`layout.py`): `display_layout` (`TopoGraph.display_layout`), for drawing only;
@@ -41,6 +41,7 @@ from island_mapping.core.graph.strategy import (
     normalize_strategy,
     reverse_strategy,
     strategy_displacement,
+    without_loops,
 )
 
 __all__ = [
@@ -67,4 +68,5 @@ __all__ = [
     "reverse_strategy",
     "salvage_store",
     "strategy_displacement",
+    "without_loops",
 ]
