@@ -255,13 +255,13 @@ class Recognizer:
         heading sigmas, at most search_max_deg) are scored by the fraction of points within
         inlier_m of the model; the best few distinct ones are refined by localization.
         Accepted: converged, RMS residual <= max_residual_m, constrained along every axis,
-        inlier fraction >= min_inlier_fraction, within the search window, unambiguous, the
-        origin within max_dock_m over a straight path clear of the model's walls, and the
-        new-island localization check from there. The smallest residual wins, unless another
-        known island that may be here (rival_sigmas) fits the points too. star=True: the points
-        of a star, searched over star_search_sigmas within the star_search_max_m / _deg caps on
-        a grid of at least radius / star_search_cells, residual up to star_max_residual_m.
-        """
+        inlier fraction >= min_inlier_fraction (a star's kept: star_accept_inlier_fraction),
+        within the search window, unambiguous, the origin within max_dock_m over a straight
+        path clear of the model's walls, and the new-island localization check from there.
+        The smallest residual wins, unless another known island that may be here
+        (rival_sigmas) fits the points too. star=True: the points of a star, searched over
+        star_search_sigmas within the star_search_max_m / _deg caps on a grid of at least
+        radius / star_search_cells, residual up to star_max_residual_m."""
         rc = self.config.revisit
         found: list[Recognition] = []
         candidates = list(self._candidates(snap, islands))
@@ -283,10 +283,12 @@ class Recognizer:
         best = min(found, key=lambda f: f.residual_m)
         rivals = [f for f in found if f.island_id != best.island_id
                   and f.inlier_fraction >= best.inlier_fraction - rc.ambiguity_inlier_margin]
-        if (rc.unique_island and rivals) or self._rival_fits(
-            candidates, points, at, best.island_id, star
-        ):
+        if (rc.unique_island and rivals) or self._rival_fits(candidates, points, at,
+                                                               best.island_id, star):
             self.diagnostics.refuse(Refusal.LOOK_ALIKE)
+            return None
+        if star and best.inlier_fraction < rc.star_accept_inlier_fraction:  # after rivals
+            self.diagnostics.refuse(Refusal.INLIERS)
             return None
         chosen = next(c for c in candidates if c.island.id == best.island_id)
         if self._turned_alias(chosen, best, points, star):
@@ -398,14 +400,12 @@ class Recognizer:
                 return True
         return False
 
-    def _turned_alias(
-        self, cand: _Candidate, best: Recognition, pts: FloatArray, star: bool,
-    ) -> bool:
+    def _turned_alias(self, cand: _Candidate, best: Recognition, pts: FloatArray,
+                      star: bool) -> bool:
         """Does the chosen island fit the points as well turned by a quarter or half turn, once
         its heading uncertainty (rival_sigmas sigmas) exceeds 45 deg? A + junction mapped all
         round fits itself turned, and a clipped heading window may hold the turned fit. Every
-        turn is tried: odometry's systematic drift outgrows its sigmas. (A place mapped in part
-        is not caught: on paper_fig4 a crossing was docked 91 deg off, 3.5 sigmas out.)"""
+        turn is tried: odometry's systematic drift outgrows its sigmas."""
         rc = self.config.revisit
         k = rc.rival_sigmas
         if k <= 0 or not rc.turned_alias or k * cand.sigma_rad < _ALIAS_MIN_REACH_RAD:

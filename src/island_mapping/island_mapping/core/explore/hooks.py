@@ -18,6 +18,7 @@ passive mode installs it: the same search and gate as live exploration).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -104,6 +105,8 @@ def explorer_hooks(cfg: ExplorerConfig, graph: Callable[[], TopoGraph]) -> Build
 def loop_closure_hooks(cfg: ExplorerConfig) -> BuilderHooks:
     """Exploration's loop closure alone (its revisit search and `loop_closure_gate`), without
     the managed mode and exits: what the passive mode of a recording installs to close loops
-    as live exploration does (`core.builder.passive.PassiveBuilder`)."""
+    as live exploration does (`core.builder.passive.PassiveBuilder`). A recording's window of
+    scans is not a star: star_accept_inlier_fraction (measured on live stars) stays off."""
+    revisit = dataclasses.replace(cfg.revisit, star_accept_inlier_fraction=0.0)
     return BuilderHooks(accept_revisit=loop_closure_gate(cfg),
-                        arrival_match_deg=cfg.exit.arrival_match_deg, revisit=cfg.revisit)
+                        arrival_match_deg=cfg.exit.arrival_match_deg, revisit=revisit)
