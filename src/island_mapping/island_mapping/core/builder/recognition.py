@@ -255,7 +255,7 @@ class Recognizer:
         heading sigmas, at most search_max_deg) are scored by the fraction of points within
         inlier_m of the model; the best few distinct ones are refined by localization.
         Accepted: converged, RMS residual <= max_residual_m, constrained along every axis,
-        inlier fraction >= min_inlier_fraction (a star's kept: star_accept_inlier_fraction),
+        inlier fraction >= min_inlier_fraction (the one kept: >= accept_inlier_fraction too),
         within the search window, unambiguous, the origin within max_dock_m over a straight
         path clear of the model's walls, and the new-island localization check from there.
         The smallest residual wins, unless another known island that may be here
@@ -287,7 +287,7 @@ class Recognizer:
                                                                best.island_id, star):
             self.diagnostics.refuse(Refusal.LOOK_ALIKE)
             return None
-        if star and best.inlier_fraction < rc.star_accept_inlier_fraction:  # after rivals
+        if best.inlier_fraction < rc.accept_inlier_fraction:  # rivals counted from min_...
             self.diagnostics.refuse(Refusal.INLIERS)
             return None
         chosen = next(c for c in candidates if c.island.id == best.island_id)

@@ -203,10 +203,10 @@ class RevisitConfig:
                           "unique_island) makes a recognition ambiguous only when its inlier "
                           "fraction is within this of the best fit's (1: any fit does) [-]"},
     )
-    star_accept_inlier_fraction: float = field(
+    accept_inlier_fraction: float = field(
         default=0.0,
-        metadata={"help": "a star's recognition kept must have at least this inlier fraction; "
-                          "fits from min_inlier_fraction up still count as rivals (0: "
+        metadata={"help": "the recognition kept must have at least this inlier fraction; fits "
+                          "from min_inlier_fraction up still count as rivals (0: "
                           "min_inlier_fraction alone) [-]"},
     )
     clip_search: bool = field(
@@ -238,7 +238,7 @@ class RevisitConfig:
         _check("RevisitConfig", self, (
             "search_max_deg", "path_clearance_m", "min_inlier_fraction", "min_loop_m",
             "min_constraint", "rival_sigmas", "ambiguity_inlier_margin",
-            "star_accept_inlier_fraction",
+            "accept_inlier_fraction",
         ), strict=False)
         for name in ("refine_guesses", "min_points", "max_points", "star_search_cells",
                      "star_max_points"):

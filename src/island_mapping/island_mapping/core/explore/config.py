@@ -349,11 +349,11 @@ class ExplorerConfig:
         default_factory=lambda: RevisitConfig(
             unique_island=True, clip_search=True, star_search_max_m=10.0,
             star_search_cells=14, ambiguity_inlier_margin=0.15, turned_alias=True,
-            star_accept_inlier_fraction=0.85),
+            accept_inlier_fraction=0.85),
         metadata={"help": "the builder's revisit search while exploring by exits: the star "
                           "searches every island odometry allows (within its caps) and a "
-                          "recognition must fit one island only (a star's: 85 % of its "
-                          "points); the gate adds the topology"},
+                          "recognition must fit one island only, 85 % of its points; the gate "
+                          "adds the topology"},
     )
 
     def __post_init__(self) -> None:

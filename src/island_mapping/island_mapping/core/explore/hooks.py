@@ -105,8 +105,8 @@ def explorer_hooks(cfg: ExplorerConfig, graph: Callable[[], TopoGraph]) -> Build
 def loop_closure_hooks(cfg: ExplorerConfig) -> BuilderHooks:
     """Exploration's loop closure alone (its revisit search and `loop_closure_gate`), without
     the managed mode and exits: what the passive mode of a recording installs to close loops
-    as live exploration does (`core.builder.passive.PassiveBuilder`). A recording's window of
-    scans is not a star: star_accept_inlier_fraction (measured on live stars) stays off."""
-    revisit = dataclasses.replace(cfg.revisit, star_accept_inlier_fraction=0.0)
+    as live exploration does (`core.builder.passive.PassiveBuilder`). A recording's windows of
+    scans are not the live robot's: accept_inlier_fraction (measured live) stays off."""
+    revisit = dataclasses.replace(cfg.revisit, accept_inlier_fraction=0.0)
     return BuilderHooks(accept_revisit=loop_closure_gate(cfg),
                         arrival_match_deg=cfg.exit.arrival_match_deg, revisit=revisit)
