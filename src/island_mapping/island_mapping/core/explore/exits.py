@@ -22,7 +22,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from island_msgs_py.geometry import point_segment_distance
+from island_msgs_py.geometry import point_segment_distance, wrap_angles
 from island_msgs_py.types import (
     Exit,
     ExitSide,
@@ -61,17 +61,18 @@ class ExitEvidence:
     looks: FloatArray = field(default_factory=lambda: np.zeros((0, 4)))
 
     def __post_init__(self) -> None:
-        for name, cols in (("segments", 4), ("points", 2), ("driven", 4), ("looks", 4)):
+        # (name, columns, leading columns that must be finite: a look's range may be inf)
+        for name, cols, finite in (("segments", 4, 4), ("points", 2, 2), ("driven", 4, 4),
+                                   ("looks", 4, 3)):
             a = np.asarray(getattr(self, name), dtype=np.float64)
             if a.size == 0:
                 a = np.zeros((0, cols))
-            finite = a[:, :3] if name == "looks" and a.ndim == 2 else a
-            if a.ndim != 2 or a.shape[1] != cols or not np.all(np.isfinite(finite)):
+            if a.ndim != 2 or a.shape[1] != cols or not np.all(np.isfinite(a[:, :finite])):
                 raise ExploreError(f"ExitEvidence.{name}: expected a finite (N, {cols}) array, "
                                    f"got shape {a.shape}")
-            if name == "looks" and not np.all(a[:, 3] > 0.0):  # inf is no echo; NaN fails
-                raise ExploreError("ExitEvidence.looks: ranges must be > 0 (inf: no echo)")
             object.__setattr__(self, name, a)
+        if not np.all(self.looks[:, 3] > 0.0):  # inf is no echo; NaN fails
+            raise ExploreError("ExitEvidence.looks: ranges must be > 0 (inf: no echo)")
         if self.arrival_rad is not None and not math.isfinite(self.arrival_rad):
             raise ExploreError(f"ExitEvidence.arrival_rad: not finite ({self.arrival_rad})")
 
@@ -176,7 +177,7 @@ def look_through(ev: ExitEvidence, heading_rad: float, cfg: ExitConfig) -> bool:
         return False
     lk = ev.looks
     near = np.hypot(lk[:, 0], lk[:, 1]) <= cfg.look_from_m
-    off = np.angle(np.exp(1j * (lk[:, 2] - heading_rad)))
+    off = wrap_angles(lk[:, 2] - heading_rad)
     along = near & (np.abs(off) <= math.radians(cfg.look_deg))
     # How far ahead of the origin, along the axis, each reading saw free [m].
     ahead = lk[:, 0] * math.cos(heading_rad) + lk[:, 1] * math.sin(heading_rad) + np.where(

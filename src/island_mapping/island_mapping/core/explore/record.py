@@ -68,4 +68,3 @@ class MotionRecord:
         if self._go_m > 0.0:
             steps.append(StrategyPrimitive(PrimitiveKind.GO, round(100.0 * self._go_m)))
         return normalize_strategy(ControlStrategy(tuple(steps)))
-
