@@ -28,6 +28,7 @@ class Refusal(StrEnum):
     NOT_AT_PLACE = "not_at_place"  # the loop-closure gate: seen from the next place
     OUTSIDE_UNCERTAINTY = "outside_uncertainty"  # the gate: beyond the propagated covariance
     TURNED_ALIAS = "turned_alias"  # the island fits as well turned by a quarter/half turn
+    FAR_LOOK_ALIKE = "far_look_alike"  # a clipped window: an island anywhere fits as well
     TOPOLOGY = "topology"  # the explorer's gate: no exit of the island faces the arrival
 
 

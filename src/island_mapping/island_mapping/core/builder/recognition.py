@@ -112,17 +112,65 @@ class _Window:
 def search_window(rc: RevisitConfig, cand: _Candidate, star: bool) -> tuple[_Window, bool]:
     """The search window around a candidate's estimate, and whether it exceeds the caps
     (search_max_m / _deg, or the star's): with clip_search it is cut to them instead."""
-    sigmas = rc.star_search_sigmas if star else rc.search_sigmas
-    radius = max(sigmas * cand.sigma_m, rc.search_min_m)
-    dth = sigmas * cand.sigma_rad
-    max_m, max_deg = ((rc.star_search_max_m, rc.star_search_max_deg) if star
-                      else (rc.search_max_m, rc.search_max_deg))
+    radius, dth, max_m, max_deg = _reach(rc, cand, star)
     too_wide = radius > max_m or dth > math.radians(max_deg)
     if too_wide and rc.clip_search:
         radius, dth, too_wide = min(radius, max_m), min(dth, math.radians(max_deg)), False
     step = max(rc.search_step_m, radius / rc.star_search_cells) if star else rc.search_step_m
     max_res = rc.star_max_residual_m if star else rc.max_residual_m
     return _Window(radius, dth, step, max_res), too_wide
+
+
+def _reach(rc: RevisitConfig, cand: _Candidate, star: bool
+           ) -> tuple[float, float, float, float]:
+    """(search radius [m], heading half-width [rad]) a candidate's sigmas ask for, and the
+    caps (max radius [m], max heading [deg]) of that search."""
+    sigmas = rc.star_search_sigmas if star else rc.search_sigmas
+    max_m, max_deg = ((rc.star_search_max_m, rc.star_search_max_deg) if star
+                      else (rc.search_max_m, rc.search_max_deg))
+    return (max(sigmas * cand.sigma_m, rc.search_min_m), sigmas * cand.sigma_rad, max_m,
+            max_deg)
+
+
+def exceeds_caps(rc: RevisitConfig, cand: _Candidate, star: bool) -> bool:
+    """Would the candidate's window exceed the search caps (clipped or refused)?"""
+    radius, dth, max_m, max_deg = _reach(rc, cand, star)
+    return radius > max_m or dth > math.radians(max_deg)
+
+
+Refine = Callable[[Island, FloatArray, Pose2D, _Window, Callable[[Refusal], None]],
+                  list[Recognition]]
+
+
+def fits_elsewhere(refine: Refine, rc: RevisitConfig, islands: Sequence[Island],
+                   pts: FloatArray, best: Recognition, star: bool) -> bool:
+    """Does an island other than best's fit `pts` as well (inliers within
+    ambiguity_inlier_margin of best's) at a pose within max_dock_m of its own origin, at any
+    heading? Where odometry no longer bounds where the robot is (a window cut to the caps),
+    only the map's other places can tell a look-alike."""
+    win = _Window(rc.max_dock_m, math.pi, rc.rival_step_m,
+                  rc.star_max_residual_m if star else rc.max_residual_m)
+    floor = best.inlier_fraction - rc.ambiguity_inlier_margin
+    for island in islands:
+        if island.id == best.island_id or len(island.model) == 0:
+            continue
+        fits = refine(island, pts, Pose2D(0.0, 0.0, 0.0), win, _ignore)
+        if any(f.inlier_fraction >= floor for f in fits):
+            return True
+    return False
+
+
+def with_distance(rc: RevisitConfig, fit: Recognition, at: Pose2D,
+                  spreads: Sequence[tuple[Pose2D, FloatArray]]) -> Recognition:
+    """`fit` (the robot at odometric pose `at`) with its squared Mahalanobis distance: the
+    largest over the island's estimates (`Recognizer.spreads`), each under its full covariance
+    plus the fit's own error (fit_sigma_m / _deg): a true recognition lies within every honest
+    estimate's uncertainty."""
+    floor = np.diag([rc.fit_sigma_m ** 2, rc.fit_sigma_m ** 2,
+                     math.radians(rc.fit_sigma_deg) ** 2])
+    d2 = max((mahalanobis2(fit.pose, at.relative_to(origin), cov, floor)
+              for origin, cov in spreads), default=None)
+    return dataclasses.replace(fit, mahalanobis2=d2)
 
 
 def rival_window(rc: RevisitConfig, cand: _Candidate, max_dth_rad: float, star: bool) -> _Window:
@@ -250,18 +298,17 @@ class Recognizer:
         pose `at`; the recognition's pose is `at` in the island frame.
 
         Candidates: islands whose origin could be within `max_dock_m` of the robot given the
-        search radius (search_sigmas sigmas of the estimate's position sigma). Per candidate,
-        guesses on a grid around the odometric estimate (and headings within search_sigmas
-        heading sigmas, at most search_max_deg) are scored by the fraction of points within
-        inlier_m of the model; the best few distinct ones are refined by localization.
-        Accepted: converged, RMS residual <= max_residual_m, constrained along every axis,
-        inlier fraction >= min_inlier_fraction (the one kept: >= accept_inlier_fraction too),
-        within the search window, unambiguous, the origin within max_dock_m over a straight
-        path clear of the model's walls, and the new-island localization check from there.
-        The smallest residual wins, unless another known island that may be here
-        (rival_sigmas) fits the points too. star=True: the points of a star, searched over
-        star_search_sigmas within the star_search_max_m / _deg caps on a grid of at least
-        radius / star_search_cells, residual up to star_max_residual_m."""
+        search radius (search_sigmas sigmas of the estimate's sigmas, heading at most
+        search_max_deg). A grid of guesses around the estimate, scored by inliers (within
+        inlier_m of the model); the best few are refined by localization. Accepted:
+        converged, residual <= max_residual_m, constrained along every axis, inliers >=
+        min_inlier_fraction (kept: >= accept_inlier_fraction), inside the window,
+        unambiguous, the origin within max_dock_m by a path clear of walls, and the new-island
+        localization check. The smallest residual wins, unless another island that may be
+        here (rival_sigmas) fits too, the island fits turned (turned_alias), or, its window
+        clipped, any island fits near its origin (clipped_rivals). star=True: a star's points,
+        over star_search_sigmas within the star_ caps, a grid of at least radius /
+        star_search_cells, residual up to star_max_residual_m."""
         rc = self.config.revisit
         found: list[Recognition] = []
         candidates = list(self._candidates(snap, islands))
@@ -277,7 +324,7 @@ class Recognizer:
                 continue
             fit = self._search(cand.island, points, est, win)
             if fit is not None:
-                found.append(self._with_distance(fit, at, snap))
+                found.append(with_distance(rc, fit, at, self.spreads(fit.island_id, snap)))
         if not found:
             return None
         best = min(found, key=lambda f: f.residual_m)
@@ -293,6 +340,11 @@ class Recognizer:
         chosen = next(c for c in candidates if c.island.id == best.island_id)
         if self._turned_alias(chosen, best, points, star):
             self.diagnostics.refuse(Refusal.TURNED_ALIAS)
+            return None
+        if rc.clipped_rivals and exceeds_caps(rc, chosen, star) and fits_elsewhere(
+                self._refine, rc, [i for i in islands if i.id in self._known], points, best,
+                star):
+            self.diagnostics.refuse(Refusal.FAR_LOOK_ALIKE)
             return None
         return best
 
@@ -350,18 +402,6 @@ class Recognizer:
         _, cov0 = self._known[island_id]
         at = self._cov_at.get(island_id, self._known[island_id][0])
         return relative_covariance(at, cov0, snap.odom, snap.odom_cov)
-
-    def _with_distance(self, fit: Recognition, at: Pose2D, snap: PoseSnapshot) -> Recognition:
-        """`fit` (the robot at odometric pose `at`) with its squared Mahalanobis distance:
-        the largest over the island's estimates (`spreads`), each under its full covariance plus the
-        fit's own error (fit_sigma_m / _deg): a true recognition lies within every honest
-        estimate's uncertainty."""
-        rc = self.config.revisit
-        floor = np.diag([rc.fit_sigma_m ** 2, rc.fit_sigma_m ** 2,
-                         math.radians(rc.fit_sigma_deg) ** 2])
-        d2 = max((mahalanobis2(fit.pose, at.relative_to(origin), cov, floor)
-                  for origin, cov in self.spreads(fit.island_id, snap)), default=None)
-        return dataclasses.replace(fit, mahalanobis2=d2)
 
     def _candidates(self, snap: PoseSnapshot, islands: Sequence[Island]) -> Iterator[_Candidate]:
         """Known islands a recognition may match, with their best odometric origin estimate

@@ -221,6 +221,13 @@ class RevisitConfig:
                           "by a quarter or half turn, once its heading uncertainty (rival_sigmas "
                           "heading sigmas) exceeds 45 deg [bool]"},
     )
+    clipped_rivals: bool = field(
+        default=False,
+        metadata={"help": "when the recognised island's window was cut to the search caps "
+                          "(clip_search), every other island is searched around its own "
+                          "origin (within max_dock_m, any heading): one that fits as well "
+                          "makes the place a look-alike and the recognition is refused [bool]"},
+    )
     fit_sigma_m: float = field(
         default=0.3, metadata={"help": "a recognised pose's own position error, added to the "
                                "odometric estimate's covariance in its Mahalanobis distance [m]"})
