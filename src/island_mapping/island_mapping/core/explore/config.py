@@ -203,6 +203,24 @@ class ExplorerConfig:
                           "where odometry says the robot is counts as not converged (the robot "
                           "is then lost, not docked) [m]"},
     )
+    relocalize_max_shift_m: float = field(
+        default=3.0,
+        metadata={"help": "when that fails, a second look may find the island up to this far "
+                          "from odometry's estimate; the robot drives to the origin it shows "
+                          "and is docked only when a look there localizes within "
+                          "return_max_shift_m (<= return_max_shift_m: no second look) [m]"},
+    )
+    relocalize_max_turn_deg: float = field(
+        default=40.0,
+        metadata={"help": "the second look's hypothesis may turn the heading this far from "
+                          "odometry's (NavigateConfig.max_turn_deg for every look that docks); "
+                          "a quarter turn would be a junction's alias [deg]"},
+    )
+    relocalize_max_residual_m: float = field(
+        default=0.2,
+        metadata={"help": "and may leave this RMS residual (NavigateConfig.max_residual_m "
+                          "for every look that docks) [m]"},
+    )
     return_shortcut_m: float = field(
         default=0.4,
         metadata={"help": "driving back to the island left, the way out is taken without its "
@@ -349,7 +367,7 @@ class ExplorerConfig:
         default_factory=lambda: RevisitConfig(
             unique_island=True, clip_search=True, star_search_max_m=10.0,
             star_search_cells=14, ambiguity_inlier_margin=0.15, turned_alias=True,
-            accept_inlier_fraction=0.85),
+            accept_inlier_fraction=0.85, clipped_rivals=True),
         metadata={"help": "the builder's revisit search while exploring by exits: the star "
                           "searches every island odometry allows (within its caps) and a "
                           "recognition must fit one island only, 85 % of its points; the gate "
@@ -361,7 +379,9 @@ class ExplorerConfig:
                               "return_max_shift_m", "door_max_width_m", "return_loop_m",
                               "door_through_m", "map_wait_s", "look_buffer_s", "revisit_near_m",
                               "revisit_max_mahalanobis2"),
-                       ("depart_min_free_m", "lane_snap_m", "return_shortcut_m"))
+                       ("depart_min_free_m", "lane_snap_m", "return_shortcut_m",
+                        "relocalize_max_shift_m", "relocalize_max_turn_deg",
+                        "relocalize_max_residual_m"))
         _check_numbers(self, ("side_min_width_m", "side_near_island_m", "side_merge_m",
                               "side_merge_deg", "side_chain_m", "side_search_m"),
                        ("side_max_turn_deg", "side_direct_m", "failed_edge_penalty_m"))

@@ -12,13 +12,18 @@ exit's heading only. Everything in the island frame [m, rad].
 from __future__ import annotations
 
 import math
+from collections.abc import Generator
 from dataclasses import dataclass
 
 import numpy as np
+from island_msgs_py.hall_perception import perceive
 from island_msgs_py.types import Exit, FloatArray, LineModel, Pose2D, wrap_angle
 
 from island_mapping.core.explore.config import ExplorerConfig
 from island_mapping.core.explore.exits import ExitEvidence, Lane, free_lanes
+from island_mapping.core.route import Command, Drive, go_to
+
+STOP: Command = (0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -67,3 +72,17 @@ def plan_departure(model: LineModel, ex: Exit, points: FloatArray, cfg: Explorer
     return DeparturePlan(waypoints, h, through, lane)
 
 
+
+
+def go_clear(d: Drive, target_odom: Pose2D) -> Generator[Command, None, None]:
+    """`go_to` the odometric pose, stopping short where the sonar shows a wall closer ahead
+    than the route's stop_distance_m (a waypoint planned on a sparse model can lie at a wall:
+    driving on would touch it)."""
+    motion = go_to(d, target_odom)
+    for cmd in motion:
+        if cmd[0] > 0.0 and perceive(d.sense.ranges_m, d.sense.angles_rad,
+                                     d.perception).front_m < d.cfg.stop_distance_m:
+            motion.close()
+            yield STOP
+            return
+        yield cmd

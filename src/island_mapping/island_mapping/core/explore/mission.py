@@ -43,9 +43,14 @@ from island_msgs_py.types import (
 
 from island_mapping.core.builder import BuilderEvent, EventKind
 from island_mapping.core.explore.config import ExploreError, ExplorerConfig
-from island_mapping.core.explore.departure import plan_departure
+from island_mapping.core.explore.departure import go_clear, plan_departure
 from island_mapping.core.explore.novelty import known_space_costs
-from island_mapping.core.explore.openings import OpeningWatch, new_side_exits, side_departure
+from island_mapping.core.explore.openings import (
+    OpeningWatch,
+    noted_side_exits,
+    side_departure,
+    side_trip_end,
+)
 from island_mapping.core.explore.planner import (
     Target,
     nearest_unexplored,
@@ -53,11 +58,11 @@ from island_mapping.core.explore.planner import (
     unexplored_count,
 )
 from island_mapping.core.explore.record import MotionRecord
+from island_mapping.core.explore.relocalize import relocalize
 from island_mapping.core.explore.watch import Deferred, StuckWatch
 from island_mapping.core.graph import (
     TopoGraph,
     reverse_strategy,
-    strategy_displacement,
     without_loops,
 )
 from island_mapping.core.route import (
@@ -68,7 +73,6 @@ from island_mapping.core.route import (
     RouteTimeoutError,
     Sense,
     execute_strategy,
-    go_to,
     localize_and_dock,
     rotate_to,
 )
@@ -185,7 +189,8 @@ class Explorer:
         self._penalty: dict[frozenset[int], float] = {}  # edges whose arrival failed
         self.counts = {"exits_explored": 0, "exits_blocked": 0, "lost": 0, "returns": 0,
                        "retreats": 0, "arrivals": 0, "untrusted_arrivals": 0,
-                       "side_exits_added": 0, "side_exits_explored": 0, "exits_deferred": 0}
+                       "side_exits_added": 0, "side_exits_explored": 0, "exits_deferred": 0,
+                       "relocalized": 0}
 
     # ----- inputs -----
 
@@ -337,11 +342,11 @@ class Explorer:
                 yield from execute_strategy(d, e.strategy)
                 fix = yield from localize_and_dock(d, islands[e.target], Pose2D(0.0, 0.0, 0.0),
                                                    self._fixed)
-            except RouteTimeoutError:
+            except RouteTimeoutError:  # an edge that cannot be driven: avoid it next time
+                _penalize(self._penalty, e, self.cfg.failed_edge_penalty_m)
                 return None, last
             if not fix.trusted:  # back the way it came, to the island it left
-                self._penalty[frozenset((e.source, e.target))] = self._penalty.get(
-                    frozenset((e.source, e.target)), 0.0) + self.cfg.failed_edge_penalty_m
+                _penalize(self._penalty, e, self.cfg.failed_edge_penalty_m)
                 back = yield from self._retreat(e, last)
                 return (back, last) if back is not None else (None, last)
             last = self._dock(e.target, fix)
@@ -362,8 +367,24 @@ class Explorer:
             fix = yield from localize_and_dock(d, island, near, self._fixed,
                                                self.cfg.return_max_shift_m)
         except RouteTimeoutError:
+            fix = None
+        fix = yield from self._again(island, last.origin_odom, fix)
+        return self._dock(last.island_id, fix) if fix is not None and fix.trusted else None
+
+    def _again(self, island: Island, origin_odom: Pose2D, fix: Fix | None
+               ) -> Generator[Step, None, Fix | None]:
+        """`fix` when trusted, else `relocalize` at the island (origin last at origin_odom);
+        None past the deadline."""
+        if (fix is not None and fix.trusted) or self._drive is None:
+            return fix
+        self._drive.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
+        try:
+            fix = yield from relocalize(self._drive, island, origin_odom, self.cfg,
+                                        self._fixed)
+        except RouteTimeoutError:
             return None
-        return self._dock(last.island_id, fix) if fix.trusted else None
+        self.counts["relocalized"] += int(fix is not None and fix.trusted)
+        return fix
 
     def _fixed(self, fix: Fix) -> None:
         self.counts["arrivals"] += 1
@@ -383,7 +404,7 @@ class Explorer:
         except RouteTimeoutError:
             d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
             try:
-                yield from self._go_clear(here.origin_odom)
+                yield from go_clear(d, here.origin_odom)
             except RouteTimeoutError:
                 pass
             self._since_dock = MotionRecord(self._sense.odom)
@@ -397,31 +418,16 @@ class Explorer:
         plan = plan_departure(island.model, _exit(island, exit_index),
                               to_frame(seen, here.origin_odom), self.cfg)
         for p in plan.waypoints:
-            yield from self._go_clear(here.origin_odom.compose(p))
+            yield from go_clear(d, here.origin_odom.compose(p))
         yield from rotate_to(d, wrap_angle(here.origin_odom.theta + plan.heading_rad))
         if perceive(self._sense.ranges_m, self._sense.angles_rad,
                     self.perception).front_m < self.cfg.depart_min_free_m:
-            yield from self._go_clear(here.origin_odom)
+            yield from go_clear(d, here.origin_odom)
             self._since_dock = MotionRecord(self._sense.odom)
             return False
         if plan.through is not None:
-            yield from self._go_clear(here.origin_odom.compose(plan.through))
+            yield from go_clear(d, here.origin_odom.compose(plan.through))
         return True
-
-    def _go_clear(self, target_odom: Pose2D) -> Generator[Step, None, None]:
-        """`go_to` the odometric pose, stopping short where the sonar shows a wall closer
-        ahead than the route's stop_distance_m (a waypoint planned on a sparse model can lie
-        at a wall: driving on would touch it)."""
-        d = self._drive
-        assert d is not None
-        motion = go_to(d, target_odom)
-        for cmd in motion:
-            if cmd[0] > 0.0 and perceive(self._sense.ranges_m, self._sense.angles_rad,
-                                         self.perception).front_m < self.nav.stop_distance_m:
-                motion.close()
-                yield STOP
-                return
-            yield cmd
 
     def _handed_over(self, here: _Here, exit_index: int | None
                      ) -> Generator[Step, None, _Here]:
@@ -467,33 +473,18 @@ class Explorer:
 
     def _note_openings(self, island_id: int, watch: OpeningWatch) -> None:
         """The openings seen on the way from island_id become its side exits (new ones only)."""
-        openings = watch.finish()
-        if not openings or island_id not in self.graph:
-            return
-        end = strategy_displacement(ControlStrategy(watch.head.steps + watch.last.steps))
-        known = {e.index for e in self.graph.get_island(island_id).exits}
-        pending = tuple(e for e in self._side_sent.get(island_id, []) if e.index not in known)
-        new = new_side_exits(self.graph, island_id, openings, self.cfg, (end,), pending)
+        new = noted_side_exits(self.graph, island_id, watch, self.cfg, self._side_sent)
         self._requests.extend(NewExit(island_id, ex) for ex in new)
-        self._side_sent.setdefault(island_id, []).extend(new)
         self.counts["side_exits_added"] += len(new)
 
     def _side_explored(self, island_id: int, index: int, reached: int, edges: list[Edge]
                        ) -> None:
-        """A side exit's trip ended at island `reached`: explored by the edge the builder made
-        from island_id (blocked when it made none); never chosen again."""
-        if index not in {e.index for e in self._side_sent.get(island_id, [])} and not (
-            island_id in self.graph and _exit(self.graph.get_island(island_id), index).is_side
-        ):
-            return
-        self._blocked.add((island_id, index))
-        self.counts["side_exits_explored"] += 1
-        made = [e for e in edges if (e.source, e.target) == (island_id, reached)]
-        if made or self.graph.has_edge(island_id, reached):
-            self._requests.append(ExitUpdate(island_id, index, ExitState.EXPLORED,
-                                             (island_id, reached)))
-        else:
-            self._requests.append(ExitUpdate(island_id, index, ExitState.BLOCKED))
+        """A side exit's trip ended at island `reached`: never chosen again (`side_trip_end`)."""
+        update = side_trip_end(self.graph, self._side_sent, (island_id, index), reached, edges)
+        if update is not None:
+            self._blocked.add((island_id, index))
+            self.counts["side_exits_explored"] += 1
+            self._requests.append(update)
 
     def _docked_by_builder(self, e: BuilderEvent) -> _Here:
         assert e.accepted_island_id is not None
@@ -521,6 +512,7 @@ class Explorer:
                                                self.cfg.return_max_shift_m)
         except RouteTimeoutError:
             fix = None
+        fix = yield from self._again(island, here.origin_odom, fix)
         if exit_index is not None and self._deferred.give_up((here.island_id, exit_index)):
             self._mark_blocked(here.island_id, exit_index)
         self.counts["exits_deferred"] = self._deferred.deferred
@@ -552,6 +544,12 @@ class Explorer:
         self._blocked.add((island_id, exit_index))
         self.counts["exits_blocked"] += 1
         self._requests.append(ExitUpdate(island_id, exit_index, ExitState.BLOCKED))
+
+
+def _penalize(penalty: dict[frozenset[int], float], e: Edge, metres: float) -> None:
+    """Edge e counts `metres` longer in the planner from now on."""
+    key = frozenset((e.source, e.target))
+    penalty[key] = penalty.get(key, 0.0) + metres
 
 
 def _exit(island: Island, index: int) -> Exit:

@@ -26,8 +26,11 @@ from island_msgs_py.hall_perception import Perception, perceive
 from island_msgs_py.limits import MAX_EXITS_PER_ISLAND
 from island_msgs_py.types import (
     ControlStrategy,
+    Edge,
     Exit,
     ExitSide,
+    ExitState,
+    ExitUpdate,
     Pose2D,
     PrimitiveKind,
     StrategyPrimitive,
@@ -178,6 +181,40 @@ def new_side_exits(graph: TopoGraph, island_id: int, openings: list[Opening],
         known.append(pose)
         index += 1
     return out
+
+
+def noted_side_exits(graph: TopoGraph, island_id: int, watch: OpeningWatch,
+                     cfg: ExplorerConfig, sent: dict[int, list[Exit]]) -> list[Exit]:
+    """The openings `watch` saw on the way from island_id as its new side exits (none that
+    the map or the exits already `sent` per island, not yet in the map, cover); they are
+    added to `sent`."""
+    openings = watch.finish()
+    if not openings or island_id not in graph:
+        return []
+    end = strategy_displacement(ControlStrategy(watch.head.steps + watch.last.steps))
+    known = {e.index for e in graph.get_island(island_id).exits}
+    pending = tuple(e for e in sent.get(island_id, []) if e.index not in known)
+    new = new_side_exits(graph, island_id, openings, cfg, (end,), pending)
+    sent.setdefault(island_id, []).extend(new)
+    return new
+
+
+def side_trip_end(graph: TopoGraph, sent: dict[int, list[Exit]], exit_key: tuple[int, int],
+                  reached: int, edges: list[Edge]) -> ExitUpdate | None:
+    """A trip by exit exit_key = (island, index) ended at island `reached`: when it is a side
+    exit (one in `sent`, or marked side in the map), its update: explored by the edge the
+    builder made from the island (one of `edges`, or in the map), else blocked. None: not a
+    side exit."""
+    island_id, index = exit_key
+    side = index in {e.index for e in sent.get(island_id, [])} or (
+        island_id in graph and any(e.index == index and e.is_side
+                                   for e in graph.get_island(island_id).exits))
+    if not side:
+        return None
+    if any((e.source, e.target) == (island_id, reached) for e in edges) or graph.has_edge(
+            island_id, reached):
+        return ExitUpdate(island_id, index, ExitState.EXPLORED, (island_id, reached))
+    return ExitUpdate(island_id, index, ExitState.BLOCKED)
 
 
 def _near(pose: Pose2D, places: list[Pose2D], within_m: float) -> bool:
