@@ -14,8 +14,7 @@ import math
 
 import numpy as np
 import pytest
-from island_mapping.core.explore import ExplorerConfig
-from island_mapping.core.explore.relocalize import relocalize
+from island_mapping.core.explore import ExplorerConfig, relocalize
 from island_mapping.core.route import Fix, NavigateConfig, localize_and_dock
 from island_mapping.evaluation.navigate import SimRunner, SimSetup
 from island_msgs_py.types import Island, LineModel, ModelType, Pose2D, wrap_angle

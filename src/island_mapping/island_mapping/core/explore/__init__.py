@@ -7,7 +7,9 @@ Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public
   leads away from an island, in its frame);
 - `Target`, `nearest_unexplored`, `route_edges`, `unexplored_count` (planner);
 - `known_space_costs` (novelty: the planner's extra cost of exits into space the map knows);
-- `plan_departure`, `DeparturePlan` (departure through an exit's gate);
+- `plan_departure`, `DeparturePlan`, `go_clear` (departure through an exit's gate; a drive
+  that stops short of a wall ahead);
+- `relocalize` (a second look at the island left when the way back did not localize);
 - `Explorer`, `ExplorerCommand`, `ExplorerState`, `ExplorerStatus`, `Docked`, `Handover`,
   `Abort` (mission: one step per scan);
 - `explorer_hooks`, `arrival_agrees`, `loop_closure_gate`, `loop_closure_hooks` (the builder
@@ -21,7 +23,7 @@ from island_mapping.core.explore.config import (
     ExplorerConfig,
     NoveltyConfig,
 )
-from island_mapping.core.explore.departure import DeparturePlan, plan_departure
+from island_mapping.core.explore.departure import DeparturePlan, go_clear, plan_departure
 from island_mapping.core.explore.exits import (
     ExitEvidence,
     arrival_exit,
@@ -51,6 +53,7 @@ from island_mapping.core.explore.planner import (
     route_edges,
     unexplored_count,
 )
+from island_mapping.core.explore.relocalize import relocalize
 
 __all__ = [
     "Abort",
@@ -73,11 +76,13 @@ __all__ = [
     "find_exits",
     "free_lanes",
     "gate",
+    "go_clear",
     "known_space_costs",
     "loop_closure_gate",
     "loop_closure_hooks",
     "nearest_unexplored",
     "plan_departure",
+    "relocalize",
     "route_edges",
     "unexplored_count",
 ]

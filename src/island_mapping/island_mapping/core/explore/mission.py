@@ -6,7 +6,8 @@ there by the map (`core.route`: each edge's strategy, then localize and dock), t
 hands the robot over to the builder (`core.builder.hooks`): the hall follower drives, the builder
 decides, until it builds a new island or docks onto a known one and hands back. An exit whose
 way is closed, or whose exploration runs past `exit_cap_s`, is marked blocked (after the robot
-has been driven back to the island it left). DONE when no unexplored exit is left.
+has been driven back to the island it left; a way back that does not localize looks again,
+`relocalize`, before the robot counts as lost). DONE when no unexplored exit is left.
 
 One `step(sense)` per scan returns who answers that scan (the explorer with (v, w), or the
 builder side: the builder's star or the hall follower) and the requests for the builder and
