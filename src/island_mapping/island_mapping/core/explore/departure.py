@@ -24,6 +24,7 @@ from island_mapping.core.explore.exits import ExitEvidence, Lane, free_lanes
 from island_mapping.core.route import Command, Drive, go_to
 
 STOP: Command = (0.0, 0.0)
+"""Stand still (v, w)."""
 
 
 @dataclass(frozen=True)
@@ -70,8 +71,6 @@ def plan_departure(model: LineModel, ex: Exit, points: FloatArray, cfg: Explorer
         d = cfg.door_through_m
         through = Pose2D(sx + d * math.cos(h), sy + d * math.sin(h), h)
     return DeparturePlan(waypoints, h, through, lane)
-
-
 
 
 def go_clear(d: Drive, target_odom: Pose2D) -> Generator[Command, None, None]:

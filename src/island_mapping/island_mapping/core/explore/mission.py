@@ -44,7 +44,7 @@ from island_msgs_py.types import (
 
 from island_mapping.core.builder import BuilderEvent, EventKind
 from island_mapping.core.explore.config import ExploreError, ExplorerConfig
-from island_mapping.core.explore.departure import go_clear, plan_departure
+from island_mapping.core.explore.departure import STOP, go_clear, plan_departure
 from island_mapping.core.explore.novelty import known_space_costs
 from island_mapping.core.explore.openings import (
     OpeningWatch,
@@ -77,8 +77,6 @@ from island_mapping.core.route import (
     localize_and_dock,
     rotate_to,
 )
-
-STOP: Command = (0.0, 0.0)
 
 Step = Command | None
 """What the mission yields per scan: a command the explorer answers with, or None: the
