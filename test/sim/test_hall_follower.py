@@ -325,12 +325,13 @@ def test_reset_in_the_middle_of_a_turn_keeps_only_the_rest_of_it() -> None:
 
 
 def test_no_progress_while_driving_counts_as_blocked() -> None:
-    """A wall the sonar cannot see (e.g. a specular glass pane) stops the wheels: odometry tells."""
+    """A wall the sonar cannot see (e.g. a specular glass pane) stops the wheels: odometry tells.
+    With backing off disabled the follower decides where it stands, as at a wall ahead."""
     rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]
     world = grid_world(rows, Pose2D(5.0, 2.0, 0.0))
     ranges = SonarModel(SonarConfig(ideal=True)).scan(world, world.start_pose)
     angles = SonarModel(SonarConfig(ideal=True)).angles_rad
-    cfg = HallFollowerConfig(stall_time_s=1.0)
+    cfg = HallFollowerConfig(stall_time_s=1.0, backoff_m=0.0)
     follower = HallFollower(cfg)
     stuck = Pose2D(5.0, 2.0, 0.0)
     commands = []
@@ -344,6 +345,55 @@ def test_no_progress_while_driving_counts_as_blocked() -> None:
     last = follower.decisions[-1]
     assert last.at_dead_end and last.choice is TurnChoice.BACK
     assert follower.state is FollowerState.TURN
+
+
+def _drive_into_pane(follower: HallFollower, ranges: object, angles: object,
+                     pane_x_m: float) -> list[tuple[float, float]]:
+    """Odometry integrates the commands along x, except that it cannot pass `pane_x_m` (an
+    unseen wall); 20 s at 10 Hz. The commands given."""
+    x, commands = 5.0, []
+    for k in range(200):
+        v, w = follower.update(ranges, angles, Pose2D(x, 2.0, 0.0), 0.1 * k)
+        commands.append((v, w))
+        x = min(x + 0.1 * v, pane_x_m)
+        if follower.state is FollowerState.TURN:
+            break
+    return commands
+
+
+def test_a_stall_backs_off_before_deciding() -> None:
+    """Stalled at an unseen wall, the robot backs straight away by backoff_m (a disk touching
+    a jamb can always leave the way it came), then decides as at a wall ahead; the backing is
+    taken off the Go it interrupted."""
+    rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]
+    world = grid_world(rows, Pose2D(5.0, 2.0, 0.0))
+    sonar = SonarModel(SonarConfig(ideal=True))
+    ranges, angles = sonar.scan(world, world.start_pose), sonar.angles_rad
+    cfg = HallFollowerConfig(stall_time_s=1.0, backoff_m=0.3, backoff_speed_mps=0.15)
+    follower = HallFollower(cfg)
+    commands = _drive_into_pane(follower, ranges, angles, pane_x_m=6.0)
+    assert follower.stalls == 1
+    backing = [v for v, _ in commands if v < 0.0]
+    assert backing and all(v == pytest.approx(-0.15) for v in backing)
+    assert 0.1 * 0.15 * len(backing) == pytest.approx(0.3, abs=0.03)  # backoff_m of travel
+    last = follower.decisions[-1]
+    assert last.at_dead_end and last.choice is TurnChoice.BACK
+    go = follower.strategy().steps[0]
+    assert go.kind is PrimitiveKind.GO and go.value == pytest.approx(70, abs=4)  # 1.0 - 0.3 m
+
+
+def test_backing_off_stops_at_a_wall_behind() -> None:
+    """A wall close behind ends the backing at once: the follower decides where it stands."""
+    rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]
+    world = grid_world(rows, Pose2D(1.45, 2.0, 0.0))
+    sonar = SonarModel(SonarConfig(ideal=True))
+    ranges, angles = sonar.scan(world, world.start_pose), sonar.angles_rad
+    follower = HallFollower(HallFollowerConfig(stall_time_s=1.0, backoff_m=0.3))
+    follower.update(ranges, angles, Pose2D(5.0, 2.0, 0.0), 0.0)
+    commands = _drive_into_pane(follower, ranges, angles, pane_x_m=5.0)
+    assert follower.stalls == 1
+    assert not any(v < 0.0 for v, _ in commands)
+    assert follower.decisions[-1].at_dead_end
 
 
 def test_a_pause_is_not_time_spent_stuck() -> None:

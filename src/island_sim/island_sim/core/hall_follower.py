@@ -12,6 +12,10 @@ A pure state machine: `HallFollower.update(ranges_m, angles_rad, odom_pose, t_s)
   cancelling if the side closes again first (a door, narrower than a hallway), rotates in place
   by odometry (TURN) and drives into the new hallway (ENTER) before following again.
 - It stops short of walls ahead: the speed falls to zero at `stop_distance_m`.
+- A *stall* (driving forward while odometry shows no progress: a wall the sonar missed, a
+  doorway's jamb under the body's edge) backs the robot straight away by `backoff_m` (BACK_OFF;
+  less where the ring sees a wall behind), then decides as at a wall ahead. Backing is along
+  the Go it interrupts and is taken off that Go's travel.
 - What it executed is kept as the paper's control-strategy primitives (Table 1, see
   `strategy_record`): Go [cm] of odometric travel, Rot [deg CCW, 0-360) of odometric rotation;
   `reset_strategy()` restarts the record at the current pose; `set_enabled(False)` outputs zero
@@ -31,6 +35,7 @@ from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
+from island_msgs_py.geometry import wrap_angles
 from island_msgs_py.hall_perception import Perception, PerceptionError, perceive
 from island_msgs_py.types import ControlStrategy, Pose2D, wrap_angle
 
@@ -62,6 +67,10 @@ _SETTLED_STEP_M = 0.002
 # control period under this fraction of (commanded speed x period) counts as no progress [-].
 _STALL_MIN_SPEED_MPS = 0.1
 _STALL_PROGRESS_FRACTION = 0.2
+# Half-width of the sector behind the robot whose echoes limit backing off [rad]; backing that
+# has not covered backoff_m in this many times the time it needs has stalled too [-].
+_REAR_HALF_RAD = math.radians(35.0)
+_BACKOFF_TIME_FACTOR = 3.0
 # Largest disagreement [rad] between the wall-based and the held hallway direction still trusted.
 _AXIS_TRUST_RAD = math.radians(25.0)
 # The twist of a step that only changes state (stop, settle, decide) [m/s, rad/s].
@@ -73,6 +82,7 @@ class FollowerState(StrEnum):
     ADVANCE = "advance"  # driving on to the middle of the chosen side hallway
     TURN = "turn"  # rotating in place to a target odometric heading
     ENTER = "enter"  # driving into the new hallway before following it
+    BACK_OFF = "back_off"  # backing straight away from where it stalled
     PAUSED = "paused"
 
 
@@ -130,6 +140,9 @@ class HallFollower:
         self._turn_target = 0.0
         self._settling = False
         self._last_step_m = 0.0
+        self._backoff_from_m = 0.0  # travel when backing off started [m]
+        self._backoff_since_s = 0.0
+        self._blocked_next = False  # after backing off: decide as at a wall ahead
         self._record = StrategyRecorder()
 
     # --- public state --------------------------------------------------------------------------
@@ -154,6 +167,7 @@ class HallFollower:
             self._last_pose = None  # motion while paused is not part of the strategy
             self._started = False
             self._stall_since = None  # the pause is not time spent stuck
+            self._blocked_next = False
             self._last_t = None
             self._last_v = 0.0
             for side in self._armed:
@@ -209,15 +223,52 @@ class HallFollower:
         if not self._enabled:
             return 0.0, 0.0
         self._track_motion(odom_pose)
+        if self._state is FollowerState.BACK_OFF:
+            self._last_t = t_s
+            return self._step_back_off(ranges_m, angles_rad, t_s)
         stalled = self._stalled(t_s)
         self._last_t = t_s
         if stalled:
             self.stalls += 1
             self._stall_since = None
+            if self.config.backoff_m > 0.0 and self.config.backoff_speed_mps > 0.0:
+                self._start_back_off(t_s)
+                return _STOP
+            self._blocked_next = True
+        if self._blocked_next:
+            self._blocked_next = False
             p = dataclasses.replace(p, front_m=0.0)  # blocked by something the sonar missed
         v, w = self._control(p, odom_pose, t_s)
         self._last_v = v
         return v, w
+
+    def _start_back_off(self, t_s: float) -> None:
+        """Stalled: back straight away (what the stalled state had planned is dropped)."""
+        self._state = FollowerState.BACK_OFF
+        self._pending = None
+        self._backoff_from_m = self._travel_m
+        self._backoff_since_s = t_s
+
+    def _step_back_off(self, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike, t_s: float
+                       ) -> tuple[float, float]:
+        """BACK_OFF: reverse until backoff_m is covered, a wall is near behind, or backing
+        makes no progress; then FOLLOW, deciding as at a wall ahead."""
+        c = self.config
+        r = np.asarray(ranges_m, dtype=np.float64)
+        a = np.asarray(angles_rad, dtype=np.float64)
+        behind = np.abs(wrap_angles(a - math.pi)) <= _REAR_HALF_RAD
+        rear = r[behind & np.isfinite(r)]
+        rear_m = float(rear.min()) if rear.size else math.inf
+        backed = self._travel_m - self._backoff_from_m
+        overdue = t_s - self._backoff_since_s > _BACKOFF_TIME_FACTOR * (
+            c.backoff_m / c.backoff_speed_mps + c.stall_time_s)
+        if backed >= c.backoff_m or rear_m <= c.stop_distance_m or overdue:
+            self._state = FollowerState.FOLLOW
+            self._blocked_next = True
+            self._last_v = 0.0
+            return _STOP
+        self._last_v = -c.backoff_speed_mps
+        return -c.backoff_speed_mps, 0.0
 
     def _stalled(self, t_s: float) -> bool:
         """Commanded forward for `stall_time_s` while odometry advanced < 1/5 of that speed."""
@@ -354,7 +405,9 @@ class HallFollower:
             d = math.hypot(pose.x - self._last_pose.x, pose.y - self._last_pose.y)
             self._last_step_m = d
             self._travel_m += d
-            if self._state is not FollowerState.TURN or self._settling:
+            if self._state is FollowerState.BACK_OFF:
+                self._record.add_travel(-d)  # backing along the Go undoes part of it
+            elif self._state is not FollowerState.TURN or self._settling:
                 self._record.add_travel(d)
         self._last_pose = pose
 

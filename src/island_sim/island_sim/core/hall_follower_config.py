@@ -172,6 +172,16 @@ class HallFollowerConfig:
                   "long counts as blocked (a wall the sonar cannot see) [s]",
                   "live": True, "range": _NON_NEGATIVE},
     )
+    backoff_m: float = field(
+        default=0.3,
+        metadata={"help": "after a stall the robot backs straight away this far before it "
+                  "decides as at a wall (0: it decides where it stands) [m]",
+                  "live": True, "range": _NON_NEGATIVE},
+    )
+    backoff_speed_mps: float = field(
+        default=0.15,
+        metadata={"help": "backing speed [m/s]", "live": True, "range": _NON_NEGATIVE},
+    )
     min_turn_rate_radps: float = field(
         default=0.15,
         metadata={"help": "smallest turn rate while rotating in place [rad/s]",
@@ -197,7 +207,7 @@ class HallFollowerConfig:
             "rearm_distance_m", "confirm_distance_m", "default_hall_width_m", "side_lag_m",
             "min_advance_m", "enter_distance_m", "straight_free_m", "k_lateral",
             "max_approach_deg", "k_heading", "turn_tolerance_deg", "min_turn_rate_radps",
-            "stall_time_s",
+            "stall_time_s", "backoff_m", "backoff_speed_mps",
         ):
             v = getattr(self, f_name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
