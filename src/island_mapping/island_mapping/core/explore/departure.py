@@ -40,10 +40,17 @@ class DeparturePlan:
 
 def choose_lane(lanes: list[Lane], ex: Exit, cfg: ExplorerConfig) -> Lane | None:
     """The lane whose entry heading is nearest the exit's (within merge_deg), the wider one
-    on a tie."""
+    on a tie. A lane must also run along the exit (its heading within merge_deg of the
+    exit's) or along an island axis (a side corridor entered from an offset): a diagonal lane
+    whose entry happens to lie toward the exit would hand the robot over facing across the
+    hallway, where the hall follower takes that diagonal for the hallway's axis."""
     best: tuple[float, float, Lane] | None = None
+    merge = math.radians(cfg.exit.merge_deg)
     for lane in lanes:
         if lane.width_m < cfg.exit.min_width_m:
+            continue
+        if abs(wrap_angle(lane.heading_rad - ex.heading_rad)) > merge and not _on_axis(
+                lane.heading_rad, cfg):
             continue
         ex_, ey = lane.entry(cfg.exit.entry_m)
         off = abs(wrap_angle(math.atan2(ey, ex_) - ex.heading_rad))
@@ -53,6 +60,13 @@ def choose_lane(lanes: list[Lane], ex: Exit, cfg: ExplorerConfig) -> Lane | None
         if best is None or key < best[:2]:
             best = (key[0], key[1], lane)
     return None if best is None else best[2]
+
+
+def _on_axis(heading_rad: float, cfg: ExplorerConfig) -> bool:
+    """Within half a lane heading step of one of the island's axes."""
+    quarter = 0.5 * math.pi
+    off = abs(heading_rad - quarter * round(heading_rad / quarter))
+    return off <= 0.5 * math.radians(cfg.exit.heading_step_deg)
 
 
 def plan_departure(model: LineModel, ex: Exit, points: FloatArray, cfg: ExplorerConfig
