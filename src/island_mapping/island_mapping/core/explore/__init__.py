@@ -7,8 +7,8 @@ Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public
   leads away from an island, in its frame);
 - `Target`, `nearest_unexplored`, `route_edges`, `unexplored_count` (planner);
 - `known_space_costs` (novelty: the planner's extra cost of exits into space the map knows);
-- `plan_departure`, `DeparturePlan`, `go_clear` (departure through an exit's gate; a drive
-  that stops short of a wall ahead);
+- `plan_departure`, `DeparturePlan`, `choose_lane`, `drive_departure`, `go_clear` (departure
+  through an exit's gate or doorway; a drive that stops short of a wall ahead);
 - `relocalize` (a second look at the island left when the way back did not localize);
 - `Explorer`, `ExplorerCommand`, `ExplorerState`, `ExplorerStatus`, `Docked`, `Handover`,
   `Abort` (mission: one step per scan);
@@ -23,7 +23,13 @@ from island_mapping.core.explore.config import (
     ExplorerConfig,
     NoveltyConfig,
 )
-from island_mapping.core.explore.departure import DeparturePlan, go_clear, plan_departure
+from island_mapping.core.explore.departure import (
+    DeparturePlan,
+    choose_lane,
+    drive_departure,
+    go_clear,
+    plan_departure,
+)
 from island_mapping.core.explore.exits import (
     ExitEvidence,
     arrival_exit,
@@ -72,6 +78,8 @@ __all__ = [
     "Target",
     "arrival_agrees",
     "arrival_exit",
+    "choose_lane",
+    "drive_departure",
     "explorer_hooks",
     "find_exits",
     "free_lanes",

@@ -6,7 +6,8 @@ in the island frame). The lane whose entry heading lies nearest the exit's headi
 merge_deg) is driven: sideways to where it leaves the origin's line (when that is more than
 `lane_snap_m` off), then along it; a lane narrower than `door_max_width_m` (a doorway) is driven
 `door_through_m` into before the hall follower takes over. No such lane: the robot turns to the
-exit's heading only. Everything in the island frame [m, rad].
+exit's heading and drives along it past the opening as route following drives a Go (through
+a doorway's middle; `drive_departure`). Everything in the island frame [m, rad].
 """
 
 from __future__ import annotations
@@ -16,12 +17,12 @@ from collections.abc import Generator
 from dataclasses import dataclass
 
 import numpy as np
-from island_msgs_py.hall_perception import perceive
+from island_msgs_py.hall_perception import HallPerceptionConfig, perceive
 from island_msgs_py.types import Exit, FloatArray, LineModel, Pose2D, wrap_angle
 
 from island_mapping.core.explore.config import ExplorerConfig
 from island_mapping.core.explore.exits import ExitEvidence, Lane, free_lanes
-from island_mapping.core.route import Command, Drive, go_to
+from island_mapping.core.route import Command, Drive, go_along_hall, go_to, rotate_to
 
 STOP: Command = (0.0, 0.0)
 """Stand still (v, w)."""
@@ -99,3 +100,27 @@ def go_clear(d: Drive, target_odom: Pose2D) -> Generator[Command, None, None]:
             yield STOP
             return
         yield cmd
+
+
+def drive_departure(d: Drive, plan: DeparturePlan, origin_odom: Pose2D, cfg: ExplorerConfig,
+                    perception: HallPerceptionConfig) -> Generator[Command, None, bool]:
+    """Drive `plan` from the island whose origin odometry puts at `origin_odom`: its waypoints
+    and the turn to its heading; there, with less than depart_min_free_m free ahead, back to
+    the origin and False. Then through its doorway (`plan.through`), or, where no lane was
+    seen, by `go_along_hall` along the heading to the opening's entry (exit.entry_m) and
+    door_through_m on: a doorway the sonar's wide cones show too narrow for a lane is still
+    found by its jambs and passed at its middle (the hall follower would take the jambs for a
+    wall ahead), so with no lane only the range straight ahead must be free. True: the robot
+    has left."""
+    for p in plan.waypoints:
+        yield from go_clear(d, origin_odom.compose(p))
+    yield from rotate_to(d, wrap_angle(origin_odom.theta + plan.heading_rad))
+    seen = perceive(d.sense.ranges_m, d.sense.angles_rad, perception)
+    if (seen.front_m if plan.lane is not None else seen.front_free_m) < cfg.depart_min_free_m:
+        yield from go_clear(d, origin_odom)
+        return False
+    if plan.through is not None:
+        yield from go_clear(d, origin_odom.compose(plan.through))
+    elif plan.lane is None:
+        yield from go_along_hall(d, cfg.exit.entry_m + cfg.door_through_m)
+    return True

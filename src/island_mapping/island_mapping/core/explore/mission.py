@@ -39,12 +39,11 @@ from island_msgs_py.types import (
     Island,
     NewExit,
     Pose2D,
-    wrap_angle,
 )
 
 from island_mapping.core.builder import BuilderEvent, EventKind
 from island_mapping.core.explore.config import ExploreError, ExplorerConfig
-from island_mapping.core.explore.departure import STOP, go_clear, plan_departure
+from island_mapping.core.explore.departure import STOP, drive_departure, go_clear, plan_departure
 from island_mapping.core.explore.novelty import known_space_costs
 from island_mapping.core.explore.openings import (
     OpeningWatch,
@@ -416,17 +415,10 @@ class Explorer:
         seen = np.concatenate([p for _, p in self._seen]) if self._seen else np.zeros((0, 2))
         plan = plan_departure(island.model, _exit(island, exit_index),
                               to_frame(seen, here.origin_odom), self.cfg)
-        for p in plan.waypoints:
-            yield from go_clear(d, here.origin_odom.compose(p))
-        yield from rotate_to(d, wrap_angle(here.origin_odom.theta + plan.heading_rad))
-        if perceive(self._sense.ranges_m, self._sense.angles_rad,
-                    self.perception).front_m < self.cfg.depart_min_free_m:
-            yield from go_clear(d, here.origin_odom)
+        left = yield from drive_departure(d, plan, here.origin_odom, self.cfg, self.perception)
+        if not left:
             self._since_dock = MotionRecord(self._sense.odom)
-            return False
-        if plan.through is not None:
-            yield from go_clear(d, here.origin_odom.compose(plan.through))
-        return True
+        return left
 
     def _handed_over(self, here: _Here, exit_index: int | None
                      ) -> Generator[Step, None, _Here]:
