@@ -96,6 +96,14 @@ _LEFT_ORDER = (TurnChoice.LEFT, TurnChoice.STRAIGHT, TurnChoice.RIGHT, TurnChoic
 _RIGHT_ORDER = (TurnChoice.RIGHT, TurnChoice.STRAIGHT, TurnChoice.LEFT, TurnChoice.BACK)
 
 
+def _rear_m(ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike) -> float:
+    """The nearest echo behind the robot (within _REAR_HALF_RAD of its back) [m]."""
+    r = np.asarray(ranges_m, dtype=np.float64)
+    behind = np.abs(wrap_angles(np.asarray(angles_rad, dtype=np.float64) - math.pi))
+    rear = r[(behind <= _REAR_HALF_RAD) & np.isfinite(r)]
+    return float(rear.min()) if rear.size else math.inf
+
+
 @dataclass(frozen=True)
 class Decision:
     """One decision at an intersection or dead end (odometric pose, sim time)."""
@@ -254,15 +262,10 @@ class HallFollower:
         """BACK_OFF: reverse until backoff_m is covered, a wall is near behind, or backing
         makes no progress; then FOLLOW, deciding as at a wall ahead."""
         c = self.config
-        r = np.asarray(ranges_m, dtype=np.float64)
-        a = np.asarray(angles_rad, dtype=np.float64)
-        behind = np.abs(wrap_angles(a - math.pi)) <= _REAR_HALF_RAD
-        rear = r[behind & np.isfinite(r)]
-        rear_m = float(rear.min()) if rear.size else math.inf
         backed = self._travel_m - self._backoff_from_m
         overdue = t_s - self._backoff_since_s > _BACKOFF_TIME_FACTOR * (
             c.backoff_m / c.backoff_speed_mps + c.stall_time_s)
-        if backed >= c.backoff_m or rear_m <= c.stop_distance_m or overdue:
+        if backed >= c.backoff_m or _rear_m(ranges_m, angles_rad) <= c.stop_distance_m or overdue:
             self._state = FollowerState.FOLLOW
             self._blocked_next = True
             self._last_v = 0.0
