@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -421,3 +422,23 @@ def test_a_pause_is_not_time_spent_stuck() -> None:
         if follower.stalls:
             break
     assert follower.stalls == 1 and 0.1 * k == pytest.approx(cfg.stall_time_s + 0.1, abs=0.25)
+
+
+def test_backing_speed_set_to_zero_while_backing_ends_the_backing() -> None:
+    """A live reconfigure to backoff_speed_mps 0 mid-backing: no division by zero, the
+    follower stops backing and decides as at a wall."""
+    rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]
+    world = grid_world(rows, Pose2D(5.0, 2.0, 0.0))
+    sonar = SonarModel(SonarConfig(ideal=True))
+    ranges, angles = sonar.scan(world, world.start_pose), sonar.angles_rad
+    cfg = HallFollowerConfig(stall_time_s=1.0)
+    follower = HallFollower(cfg)
+    stuck = Pose2D(5.0, 2.0, 0.0)
+    k = 0
+    while follower.state is not FollowerState.BACK_OFF and k < 50:
+        follower.update(ranges, angles, stuck, 0.1 * k)
+        k += 1
+    assert follower.state is FollowerState.BACK_OFF
+    follower.reconfigure(dataclasses.replace(cfg, backoff_speed_mps=0.0))
+    assert follower.update(ranges, angles, stuck, 0.1 * k) == (0.0, 0.0)
+    assert follower.state is not FollowerState.BACK_OFF

@@ -263,8 +263,8 @@ class HallFollower:
         makes no progress; then FOLLOW, deciding as at a wall ahead."""
         c = self.config
         backed = self._travel_m - self._backoff_from_m
-        overdue = t_s - self._backoff_since_s > _BACKOFF_TIME_FACTOR * (
-            c.backoff_m / c.backoff_speed_mps + c.stall_time_s)
+        overdue = c.backoff_speed_mps <= 0.0 or t_s - self._backoff_since_s > (  # set live
+            _BACKOFF_TIME_FACTOR * (c.backoff_m / c.backoff_speed_mps + c.stall_time_s))
         if backed >= c.backoff_m or _rear_m(ranges_m, angles_rad) <= c.stop_distance_m or overdue:
             self._state = FollowerState.FOLLOW
             self._blocked_next = True
