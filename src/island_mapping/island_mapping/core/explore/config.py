@@ -268,7 +268,8 @@ class ExplorerConfig:
     door_through_m: float = field(
         default=1.5,
         metadata={"help": "how far along a doorway's lane the robot drives before the hall "
-                          "follower takes over [m]"},
+                          "follower takes over; with no lane seen, how far past the opening's "
+                          "entry (exit.entry_m) it drives along the exit [m]"},
     )
     map_wait_s: float = field(
         default=5.0,
