@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-from island_msgs_py.types import ControlStrategy, Pose2D, PrimitiveKind
+from island_msgs_py.types import ControlStrategy, FloatArray, Pose2D, PrimitiveKind
 from island_sim.core.hall_follower import (
     FollowerState,
     HallFollower,
@@ -60,6 +60,15 @@ def grid_world(rows: list[str], start: Pose2D, cell_m: float = 1.0) -> World:
             else:
                 i += 1
     return World(np.array(segs, dtype=np.float64), name="grid", start_pose=start)
+
+
+def _ideal_hall_scan(x_m: float) -> tuple[FloatArray, FloatArray]:
+    """(ranges, angles) of an ideal sonar at (x_m, 2.0) facing +x in a 2 m wide, 38 m long
+    hall (grid cells of 1 m)."""
+    rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]
+    world = grid_world(rows, Pose2D(x_m, 2.0, 0.0))
+    sonar = SonarModel(SonarConfig(ideal=True))
+    return sonar.scan(world, world.start_pose), sonar.angles_rad
 
 
 def loop_world() -> World:
@@ -328,10 +337,7 @@ def test_reset_in_the_middle_of_a_turn_keeps_only_the_rest_of_it() -> None:
 def test_no_progress_while_driving_counts_as_blocked() -> None:
     """A wall the sonar cannot see (e.g. a specular glass pane) stops the wheels: odometry tells.
     With backing off disabled the follower decides where it stands, as at a wall ahead."""
-    rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]
-    world = grid_world(rows, Pose2D(5.0, 2.0, 0.0))
-    ranges = SonarModel(SonarConfig(ideal=True)).scan(world, world.start_pose)
-    angles = SonarModel(SonarConfig(ideal=True)).angles_rad
+    ranges, angles = _ideal_hall_scan(5.0)
     cfg = HallFollowerConfig(stall_time_s=1.0, backoff_m=0.0)
     follower = HallFollower(cfg)
     stuck = Pose2D(5.0, 2.0, 0.0)
@@ -366,10 +372,7 @@ def test_a_stall_backs_off_before_deciding() -> None:
     """Stalled at an unseen wall, the robot backs straight away by backoff_m (a disk touching
     a jamb can always leave the way it came), then decides as at a wall ahead; the backing is
     taken off the Go it interrupted."""
-    rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]
-    world = grid_world(rows, Pose2D(5.0, 2.0, 0.0))
-    sonar = SonarModel(SonarConfig(ideal=True))
-    ranges, angles = sonar.scan(world, world.start_pose), sonar.angles_rad
+    ranges, angles = _ideal_hall_scan(5.0)
     cfg = HallFollowerConfig(stall_time_s=1.0, backoff_m=0.3, backoff_speed_mps=0.15)
     follower = HallFollower(cfg)
     commands = _drive_into_pane(follower, ranges, angles, pane_x_m=6.0)
@@ -385,10 +388,7 @@ def test_a_stall_backs_off_before_deciding() -> None:
 
 def test_backing_off_stops_at_a_wall_behind() -> None:
     """A wall close behind ends the backing at once: the follower decides where it stands."""
-    rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]
-    world = grid_world(rows, Pose2D(1.45, 2.0, 0.0))
-    sonar = SonarModel(SonarConfig(ideal=True))
-    ranges, angles = sonar.scan(world, world.start_pose), sonar.angles_rad
+    ranges, angles = _ideal_hall_scan(1.45)  # the hall's end wall 0.45 m behind
     follower = HallFollower(HallFollowerConfig(stall_time_s=1.0, backoff_m=0.3))
     follower.update(ranges, angles, Pose2D(5.0, 2.0, 0.0), 0.0)
     commands = _drive_into_pane(follower, ranges, angles, pane_x_m=5.0)
@@ -401,10 +401,7 @@ def test_a_pause_is_not_time_spent_stuck() -> None:
     """Paused just after the wheels stopped (a controller took over), then resumed much later:
     the pause does not count towards `stall_time_s`, so the follower does not see itself
     blocked at once and turn back."""
-    rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]
-    world = grid_world(rows, Pose2D(5.0, 2.0, 0.0))
-    sonar = SonarModel(SonarConfig(ideal=True))
-    ranges, angles = sonar.scan(world, world.start_pose), sonar.angles_rad
+    ranges, angles = _ideal_hall_scan(5.0)
     cfg = HallFollowerConfig(stall_time_s=1.0)
     follower = HallFollower(cfg)
     stuck = Pose2D(5.0, 2.0, 0.0)
@@ -427,10 +424,7 @@ def test_a_pause_is_not_time_spent_stuck() -> None:
 def test_backing_speed_set_to_zero_while_backing_ends_the_backing() -> None:
     """A live reconfigure to backoff_speed_mps 0 mid-backing: no division by zero, the
     follower stops backing and decides as at a wall."""
-    rows = ["#" * 40, *(["#" + "." * 38 + "#"] * 2), "#" * 40]
-    world = grid_world(rows, Pose2D(5.0, 2.0, 0.0))
-    sonar = SonarModel(SonarConfig(ideal=True))
-    ranges, angles = sonar.scan(world, world.start_pose), sonar.angles_rad
+    ranges, angles = _ideal_hall_scan(5.0)
     cfg = HallFollowerConfig(stall_time_s=1.0)
     follower = HallFollower(cfg)
     stuck = Pose2D(5.0, 2.0, 0.0)

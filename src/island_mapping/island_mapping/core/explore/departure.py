@@ -55,7 +55,7 @@ def choose_lane(lanes: list[Lane], ex: Exit, cfg: ExplorerConfig) -> Lane | None
             continue
         ex_, ey = lane.entry(cfg.exit.entry_m)
         off = abs(wrap_angle(math.atan2(ey, ex_) - ex.heading_rad))
-        if off > math.radians(cfg.exit.merge_deg):
+        if off > merge:
             continue
         key = (round(off, 3), -lane.width_m)
         if best is None or key < best[:2]:
