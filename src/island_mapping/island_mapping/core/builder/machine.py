@@ -487,8 +487,11 @@ class IslandBuilder(BuilderView):
     def _return_step(self) -> Twist:
         att = self._attempt
         assert att is not None
-        cmd = motion.return_to_centre(self._pose_in_anchor(), self.config.star)
-        if cmd is not None and not self._take_give_up():
+        pose, sc = self._pose_in_anchor(), self.config.star
+        att.return_stalled |= self._take_give_up()  # then it only turns (a disk always can)
+        cmd = motion.turn_to(pose, 0.0, sc) if att.return_stalled else motion.return_to_centre(
+            pose, sc)
+        if cmd is not None:
             return cmd
         accepted = att.outcome is EventKind.ISLAND_ACCEPTED
         self._attempt = None

@@ -98,6 +98,7 @@ class Attempt:
     behind_free_m: float = 0.0  # straight path the follower drove up to the anchor [m]
     probe: Probe | None = None
     keep_anchor: bool = False  # the origin stays at the anchor when its measure passes
+    return_stalled: bool = False  # the drive back to the origin stalled: it only turns to it
     best: float = 0.0
     best_type: ModelType = ModelType.LINE
     model: LineModel | None = None
