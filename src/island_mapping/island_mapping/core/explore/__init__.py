@@ -9,7 +9,6 @@ Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public
 - `known_space_costs` (novelty: the planner's extra cost of exits into space the map knows);
 - `plan_departure`, `DeparturePlan`, `choose_lane`, `drive_departure`, `go_clear` (departure
   through an exit's gate or doorway; a drive that stops short of a wall ahead);
-- `MotionRecord` (the explorer's own driving as strategy steps, from an island's origin);
 - `relocalize` (a second look at the island left when the way back did not localize);
 - `Explorer`, `ExplorerCommand`, `ExplorerState`, `ExplorerStatus`, `Docked`, `Handover`,
   `Abort` (mission: one step per scan);
@@ -60,7 +59,6 @@ from island_mapping.core.explore.planner import (
     route_edges,
     unexplored_count,
 )
-from island_mapping.core.explore.record import MotionRecord
 from island_mapping.core.explore.relocalize import relocalize
 
 __all__ = [
@@ -76,7 +74,6 @@ __all__ = [
     "ExplorerState",
     "ExplorerStatus",
     "Handover",
-    "MotionRecord",
     "NoveltyConfig",
     "Target",
     "arrival_agrees",

@@ -480,7 +480,7 @@ class Explorer:
     def _docked_by_builder(self, e: BuilderEvent) -> _Here:
         assert e.accepted_island_id is not None
         origin = e.anchor_odom if e.anchor_odom is not None else e.odom_pose
-        self._since_dock = MotionRecord.from_origin(origin, self._sense.odom)
+        self._since_dock = MotionRecord(self._sense.odom)
         return _Here(e.accepted_island_id, origin)
 
     def _return(self, here: _Here, exit_index: int | None) -> Generator[Step, None, _Here]:
@@ -518,7 +518,7 @@ class Explorer:
         origin = fix.origin_odom if fix.origin_odom is not None else self._sense.odom
         here = _Here(island_id, origin)
         self._requests.append(Docked(here.island_id, here.origin_odom))
-        self._since_dock = MotionRecord.from_origin(origin, self._sense.odom)
+        self._since_dock = MotionRecord(self._sense.odom)
         self._here = island_id
         return here
 

@@ -22,9 +22,6 @@ from island_mapping.core.graph import normalize_strategy
 
 IN_PLACE_M = 0.004
 """A sensor period moving less than this is a rotation in place (or standing) [m]."""
-OFF_ORIGIN_M = 0.1
-"""A robot handed back nearer its island's origin than this counts as on it (only its heading
-is recorded) [m]."""
 
 
 class MotionRecord:
@@ -35,26 +32,6 @@ class MotionRecord:
         self._steps: list[StrategyPrimitive] = []
         self._go_m = 0.0
         self._rot_rad = 0.0
-
-    @classmethod
-    def from_origin(cls, origin: Pose2D, pose: Pose2D) -> MotionRecord:
-        """A record of the motion from `origin` with the robot at `pose` now (odometry
-        frame): the way between as Rot, Go, Rot (a heading alone within OFF_ORIGIN_M). The
-        builder hands the robot back on its island's origin facing heading 0 unless its drive
-        there stalled; strategies start at the origin either way."""
-        rec = cls(pose)
-        rel = pose.relative_to(origin)
-        dist = math.hypot(rel.x, rel.y)
-        if dist >= OFF_ORIGIN_M:
-            bearing = math.atan2(rel.y, rel.x)
-            rec._rot_rad = bearing
-            rec._flush_rot()
-            rec._go_m = dist
-            rec._flush_go()
-            rec._rot_rad = wrap_angle(rel.theta - bearing)
-        else:
-            rec._rot_rad = rel.theta
-        return rec
 
     def update(self, pose: Pose2D, counted: bool = True) -> None:
         """The odometric pose now [m, rad]; counted False: the motion since the last pose was
