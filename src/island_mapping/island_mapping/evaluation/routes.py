@@ -78,6 +78,7 @@ class RouteResult:
     success: bool
     sim_time_s: float
     end: RouteEnd = RouteEnd.COMPLETED  # how the route ended
+    wall_contacts: int = 0  # times a wall stopped the robot on the way
 
 
 @dataclass(frozen=True)
@@ -156,7 +157,8 @@ def _result(graph: TopoGraph, route: Sequence[int], robot: SimRobot, completed: 
     target = graph.get_island(route[-1])
     fin_m, fin_deg = pose_error(truth_in(target, robot.true_pose), Pose2D(0.0, 0.0, 0.0))
     success = completed and fin_m <= cfg.success_tol_m and fin_deg <= cfg.success_tol_deg
-    return RouteResult(tuple(route), tuple(edges), fin_m, fin_deg, success, robot.time_s, end)
+    return RouteResult(tuple(route), tuple(edges), fin_m, fin_deg, success, robot.time_s, end,
+                       robot.collisions)
 
 
 def follow_route(
