@@ -28,10 +28,11 @@ CROSS = np.array([[-30.0, -H, -H, -H], [-30.0, H, -H, H], [-H, H, -H, 10.0], [H,
                   [-30.0, -H, -30.0, H]])
 
 
-def _handed_back_heading_deg(held: bool) -> tuple[float, int]:
+def _handed_back_heading_deg(held: bool, pinned: bool = False) -> tuple[float, int]:
     """Follow the corridor east to x = -3 (a stand-in follower), let the builder build an
-    island; `held`: from the acceptance on the robot cannot translate (it still turns). The
-    robot's heading relative to the island's origin when handed back [deg], and the stalls."""
+    island; `held`: from the acceptance on the robot cannot translate (it still turns),
+    `pinned`: nor turn. The robot's heading relative to the island's origin when handed back
+    [deg], and the stalls."""
     cfg = BuilderConfig(peak_ahead_m=0.0, bound_floor=0.05, build_first_island=False,
                         revisit=RevisitConfig(enabled=False))
     builder = IslandBuilder(cfg)
@@ -60,6 +61,8 @@ def _handed_back_heading_deg(held: bool) -> tuple[float, int]:
             v, w = cmd.v_mps, cmd.w_radps
             if held and origin is not None:
                 v = 0.0
+            if pinned and origin is not None:
+                w = 0.0
         for _ in range(5):
             robot.step(v, w, 0.02)
             t += 0.02
@@ -78,4 +81,11 @@ def test_a_stalled_drive_back_still_ends_facing_the_island_heading() -> None:
     held, stalls = _handed_back_heading_deg(held=True)
     assert stalls >= 1  # the drive back stalled...
     assert abs(held) < 5.0  # ...and the robot turned to the island's heading all the same
+
+
+def test_a_robot_that_cannot_turn_either_is_handed_back_where_it_is() -> None:
+    """A robot pinned (no translation, no turn) from the acceptance on: the turn stalls too,
+    and the builder hands it back there instead of turning for ever."""
+    _, stalls = _handed_back_heading_deg(held=True, pinned=True)
+    assert stalls >= 2
 

@@ -100,10 +100,8 @@ class IslandBuilder(BuilderView):
     explorer's (managed mode, exits, a revisit gate: `core.builder.hooks`).
     """
 
-    def __init__(
-        self, config: BuilderConfig | None = None, fit: FitFn | None = None,
-        evaluate: EvaluateFn | None = None, hooks: BuilderHooks | None = None,
-    ) -> None:
+    def __init__(self, config: BuilderConfig | None = None, fit: FitFn | None = None,
+                 evaluate: EvaluateFn | None = None, hooks: BuilderHooks | None = None) -> None:
         self.hooks = hooks if hooks is not None else BuilderHooks()
         self.config = hooked_config(config, self.hooks)
         self._departure: Departure | None = None
@@ -479,18 +477,20 @@ class IslandBuilder(BuilderView):
         att.outcome = EventKind.ATTEMPT_DISMISSED
         self._gate.retry_after(self._path_m, self.config.retry_distance_m)
         self._emit(EventKind.ATTEMPT_DISMISSED, epsilon_m=att.epsilon_m, anchor_odom=att.anchor,
-                   measure=att.best, bound=att.bound, legs_m=tuple(att.legs_done),
-                   partial=partial,
+                   measure=att.best, bound=att.bound, legs_m=tuple(att.legs_done), partial=partial,
                    reason=reason if reason is not None else DismissReason.MEASURE)
         self._state = _State.RETURNING
 
     def _return_step(self) -> Twist:
         att = self._attempt
         assert att is not None
-        pose, sc = self._pose_in_anchor(), self.config.star
-        att.return_stalled |= self._take_give_up()  # then it only turns (a disk always can)
-        cmd = motion.turn_to(pose, 0.0, sc) if att.return_stalled else motion.return_to_centre(
-            pose, sc)
+        pose, sc, gave_up = self._pose_in_anchor(), self.config.star, self._take_give_up()
+        # A stalled drive back only turns to heading 0 (a disk always can); a stalled turn
+        # ends it where it is.
+        turn = att.return_stalled or gave_up
+        cmd = None if gave_up and att.return_stalled else (
+            motion.turn_to(pose, 0.0, sc) if turn else motion.return_to_centre(pose, sc))
+        att.return_stalled = turn
         if cmd is not None:
             return cmd
         accepted = att.outcome is EventKind.ISLAND_ACCEPTED
