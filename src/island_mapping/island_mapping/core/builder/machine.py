@@ -484,13 +484,12 @@ class IslandBuilder(BuilderView):
     def _return_step(self) -> Twist:
         att = self._attempt
         assert att is not None
-        pose, sc, gave_up = self._pose_in_anchor(), self.config.star, self._take_give_up()
+        gave_up = self._take_give_up()
         # A stalled drive back only turns to heading 0 (a disk always can); a stalled turn
         # ends it where it is.
-        turn = att.return_stalled or gave_up
-        cmd = None if gave_up and att.return_stalled else (
-            motion.turn_to(pose, 0.0, sc) if turn else motion.return_to_centre(pose, sc))
-        att.return_stalled = turn
+        cmd = None if gave_up and att.return_stalled else motion.return_to_centre(
+            self._pose_in_anchor(), self.config.star, turn_only=att.return_stalled or gave_up)
+        att.return_stalled |= gave_up
         if cmd is not None:
             return cmd
         accepted = att.outcome is EventKind.ISLAND_ACCEPTED

@@ -129,11 +129,11 @@ def along_line(pose: Pose2D, bearing: float) -> tuple[float, float]:
     return along, lateral
 
 
-def return_to_centre(pose: Pose2D, sc: StarConfig) -> Twist | None:
+def return_to_centre(pose: Pose2D, sc: StarConfig, turn_only: bool = False) -> Twist | None:
     """Back to the frame's origin along the current heading's line (forward or reversing),
-    then face heading 0; None when there."""
+    then face heading 0; None when there. turn_only: only face heading 0 where it stands."""
     dist = math.hypot(pose.x, pose.y)
-    if dist > sc.position_tol_m:
+    if dist > sc.position_tol_m and not turn_only:
         to_c = math.atan2(-pose.y, -pose.x)
         err = wrap_angle(to_c - pose.theta)
         speed = min(sc.speed_mps, _APPROACH_GAIN_PER_S * dist)
