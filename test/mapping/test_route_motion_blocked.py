@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from island_mapping.core.route import Drive, NavigateConfig, Sense, go_along_hall
+from island_mapping.core.route import Drive, NavigateConfig, Sense, go_along_hall, look_around
 from island_msgs_py.types import Pose2D
 
 ANGLES = np.linspace(-math.pi, math.pi, 16, endpoint=False)
@@ -74,3 +74,26 @@ def test_a_go_through_a_door_started_off_its_middle_passes_the_jamb(heading_deg:
     got = sim.run(go_along_hall(sim.drive, 2.0))
     assert got == pytest.approx(2.0, abs=0.05)
     assert robot.true_pose.x > 2.0  # through the door, into the hallway
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_jamb_heard_before_the_go_is_remembered(seed: int) -> None:
+    """An island 0.5 m before a 1 m door in a 0.5 m wall, its origin 0.2 m off the door's
+    middle (office seed 11, island 27): the look-around on arrival heard the near jamb's
+    corner inside the robot's path, the scans of the Go that followed did not, and the robot
+    drove onto the corner (4 contacts, stuck in the door). A Go remembers the echoes of the
+    last scans, the look-around's too, and steers past the corner through the door."""
+    from island_mapping.evaluation.navigate import SimRunner, SimSetup
+    from island_sim.core.robot import SimRobot
+    from island_sim.core.world import World
+
+    setup = SimSetup(world=World(DOOR_ROOM, "door"))
+    rng = np.random.default_rng(seed)
+    robot = SimRobot(setup.world, Pose2D(2.03, -0.2, math.pi), rng, setup.robot,
+                     setup.odometry, track_covariance=False)
+    sim = SimRunner(setup, robot, rng, NavigateConfig())
+    sim.run(look_around(sim.drive))
+    got = sim.run(go_along_hall(sim.drive, 2.0, remember=True))
+    assert got == pytest.approx(2.0, abs=0.05)
+    assert robot.true_pose.x < 0.5  # through the door, into the room
+    assert robot.collisions == 0

@@ -16,6 +16,7 @@ heading; `look_around` turns a full circle collecting echoes.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Generator
 from dataclasses import dataclass, field
 
@@ -59,6 +60,9 @@ _PATH_HALF_WIDTH_M = 0.35
 _JAMB_CLEAR_M = 1.0
 # Approach angle per metre off a jamb's lane [rad/m].
 _JAMB_GAIN_RAD_PER_M = 4.0
+# Scans whose echoes a Drive remembers (a specular ring hears a jamb's corner on one bearing
+# only, now and then; 10 Hz scans) [-].
+_RECENT_SCANS = 50
 
 
 class RouteTimeoutError(Exception):
@@ -100,6 +104,14 @@ class Drive:
     perception: HallPerceptionConfig = field(default_factory=HallPerceptionConfig)
     hall_width_m: float = 2.0  # assumed hallway width until both walls are seen [m]
     deadline_s: float = math.inf  # RouteTimeoutError past this time [s]
+    # The echoes of the last _RECENT_SCANS scans, odometry frame, (K, 2) each [m].
+    recent: deque[FloatArray] = field(default_factory=lambda: deque(maxlen=_RECENT_SCANS))
+
+    def recent_points(self) -> FloatArray:
+        """The remembered echoes in the robot's frame now, (K, 2) [m]."""
+        if not self.recent:
+            return np.zeros((0, 2))
+        return to_frame(np.concatenate(tuple(self.recent), axis=0), self.sense.odom)
 
 
 def step(d: Drive, v_mps: float, w_radps: float) -> Generator[Command, None, bool]:
@@ -107,6 +119,7 @@ def step(d: Drive, v_mps: float, w_radps: float) -> Generator[Command, None, boo
     if d.sense.t_s > d.deadline_s:
         raise RouteTimeoutError()
     yield (v_mps, w_radps)
+    d.recent.append(d.sense.points_odom())
     return d.sense.blocked
 
 
@@ -160,13 +173,16 @@ def go_to(d: Drive, target_odom: Pose2D) -> Motion:
     yield from step(d, 0.0, 0.0)
 
 
-def go_along_hall(d: Drive, distance_m: float) -> Generator[Command, None, float]:
+def go_along_hall(d: Drive, distance_m: float, *, remember: bool = False
+                  ) -> Generator[Command, None, float]:
     """Drive distance_m of odometric travel forward, centred in the hallway by the sonar;
     stop early at a wall ahead (an echo in the robot's path within 30 deg of the heading: a
     doorway's jamb heard on an oblique transducer is beside the path; in a doorway's
     passage, both sides nearer than passage_side_m, only the echo straight ahead, since the
     jambs' corners echo on every oblique axis; before a doorway, `doorway_offset`, none) or
-    when the motion is blocked."""
+    when the motion is blocked. With `remember`, the jamb check also reads the echoes of the
+    last scans (`Drive.recent`) and the lane past a jamb is steered to proportionally; without,
+    a jamb heard turns the robot away at the full approach angle."""
     c = d.cfg
     travelled = 0.0
     last = d.sense.odom
@@ -182,7 +198,8 @@ def go_along_hall(d: Drive, distance_m: float) -> Generator[Command, None, float
         in_passage = p.left_dist_m < c.passage_side_m and p.right_dist_m < c.passage_side_m
         pts = ranges_to_points(d.sense.ranges_m, d.sense.angles_rad)  # robot frame
         gap = doorway_offset(pts, c)
-        jamb = None if gap is not None else jamb_offset(pts, c)
+        jamb = None if gap is not None else jamb_offset(
+            np.concatenate((pts, d.recent_points()), axis=0) if remember else pts, c)
         # Before a doorway its jambs are what the front transducers hear: nothing lies in the
         # gap (`doorway_offset`), so the robot aims at its middle and only a contact stops it;
         # one jamb in the path with the way straight ahead free, the robot steers past it.
@@ -204,7 +221,7 @@ def go_along_hall(d: Drive, distance_m: float) -> Generator[Command, None, float
         if gap is None and travelled < jamb_until_m:  # the lane, firmly: a jamb is cm off
             offset, gain = lane - side, _JAMB_GAIN_RAD_PER_M
         approach = float(np.clip(gain * offset, -max_app, max_app))
-        if jamb is not None:  # a jamb in the path: past it, turned away as far as allowed
+        if jamb is not None and not remember:  # past it, turned away as far as allowed
             approach = math.copysign(max_app, jamb)
         err = wrap_angle(hold + approach - o.theta)
         remaining = distance_m - travelled
@@ -294,7 +311,7 @@ def execute_strategy(d: Drive, strategy: ControlStrategy) -> Motion:
     steps = strategy.steps
     for k, s in enumerate(steps):
         if s.kind is PrimitiveKind.GO:
-            got = yield from go_along_hall(d, s.metres)
+            got = yield from go_along_hall(d, s.metres, remember=True)
             if got < s.metres - max(d.cfg.go_short_m, d.cfg.go_short_fraction * s.metres):
                 raise RouteDeviationError(f"Go {s.value} ended after {got:.2f} m")
             continue
