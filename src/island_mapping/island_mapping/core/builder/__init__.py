@@ -13,6 +13,7 @@ Pure decision logic (numpy only, no ROS). Modules, each one job:
   (loop-closure candidates and the gate's Mahalanobis distance);
 - `follow`: when an attempt may start while the follower drives;
 - `motion`: turns, straight drives, docking and looks (no decisions);
+- `path_record`: an edge's strategy from the way driven (odometry simplified to a polyline);
 - `diagnostics`: counts, refusals, probes;
 - `machine`: IslandBuilder, the state machine that wires them (the live builder);
 - `passive`: PassiveBuilder, the same core on a recording (no star: a log cannot be driven);
@@ -55,6 +56,7 @@ from island_mapping.core.builder.inputs import (
 )
 from island_mapping.core.builder.machine import IslandBuilder
 from island_mapping.core.builder.passive import IslandRun, PassiveBuilder, PassiveConfig
+from island_mapping.core.builder.path_record import PathRecord, strategy_from_path
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
 from island_mapping.core.builder.star import Survey, peak_origin
 
@@ -77,6 +79,7 @@ __all__ = [
     "Measures",
     "PassiveBuilder",
     "PassiveConfig",
+    "PathRecord",
     "PoseSnapshot",
     "ProbeOutcome",
     "Recognition",
@@ -98,4 +101,5 @@ __all__ = [
     "normalized_measures",
     "peak_origin",
     "register_look",
+    "strategy_from_path",
 ]

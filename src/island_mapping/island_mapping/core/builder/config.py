@@ -321,6 +321,12 @@ class BuilderConfig:
             "(0 = always: the start is a node by definition) [-]"
         },
     )
+    edge_path_tolerance_m: float = field(
+        default=0.0,
+        metadata={"help": "an edge's strategy is the way the follower drove by odometry, "
+                          "simplified to a polyline within this (core.builder.path_record); "
+                          "0 = the follower's own record of its primitives [m]"},
+    )
     star: StarConfig = field(
         default_factory=StarConfig, metadata={"help": "the four-corner star routine"}
     )
@@ -354,7 +360,7 @@ class BuilderConfig:
             "bound_floor", "quick_reject_fraction", "retry_distance_m", "vicinity_m",
             "settled_go_m", "dismiss_fraction", "first_island_min_measure", "peak_min_gain",
             "peak_ahead_min_gain", "peak_ahead_m", "origin_feature_radius_m", "probe_turn_deg",
-            "probe_agree_deg", "origin_seen_radius_m", "drive_stall_s",
+            "probe_agree_deg", "origin_seen_radius_m", "drive_stall_s", "edge_path_tolerance_m",
         ), strict=False)
         if isinstance(self.probe_climbs, bool) or not isinstance(self.probe_climbs, int) or (
             self.probe_climbs < 0

@@ -12,7 +12,6 @@ and the events since the last call. docs/builder.md describes the decisions.
 
 from __future__ import annotations
 
-import math
 from enum import StrEnum
 
 import numpy as np
@@ -72,6 +71,7 @@ from island_mapping.core.builder.inputs import checked_cov, checked_scan
 from island_mapping.core.builder.ledger import Ledger
 from island_mapping.core.builder.motion import STOP, LookPhase, StallWatch, Twist
 from island_mapping.core.builder.opening import Openings
+from island_mapping.core.builder.path_record import PathRecord
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
 from island_mapping.core.builder.star import Attempt
 from island_mapping.core.builder.view import BuilderView
@@ -119,6 +119,7 @@ class IslandBuilder(BuilderView):
         self._stall = StallWatch(self.config.drive_stall_s)
         self._gave_up = False  # the drive under way stalled: it ends where the robot is
         self._strategy = ControlStrategy(())
+        self._path = PathRecord(self.config.edge_path_tolerance_m)  # the follower's way
         self._attempt: Attempt | None = None
         self._dock: Dock | None = None
         self._events: list[BuilderEvent] = []
@@ -133,6 +134,7 @@ class IslandBuilder(BuilderView):
         moved = self._track.update(odom_pose, cov)
         if self._state is _State.FOLLOWING:
             self._path_m += moved
+            self._path.add(odom_pose)
         self._t = max(self._t, t_s)
 
     def on_ground_truth(self, pose: Pose2D) -> None:
@@ -146,6 +148,14 @@ class IslandBuilder(BuilderView):
         self._strategy = strategy if dep is None else ControlStrategy(
             dep.prefix.steps + strategy.steps)
         self._strategy = ControlStrategy(self._strategy.steps + self._openings.steps())
+
+    def _edge_strategy(self) -> ControlStrategy:
+        """The strategy of the edge the robot is on: the follower's record, or (with
+        edge_path_tolerance_m) the way it drove, after the handover's prefix."""
+        if self.config.edge_path_tolerance_m <= 0.0:
+            return self._strategy
+        prefix = () if self._departure is None else self._departure.prefix.steps
+        return ControlStrategy(prefix + self._path.strategy().steps + self._openings.steps())
 
     def on_scan(self, t_s: float, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike) -> None:
         """A sonar scan: ranges from the robot centre [m] (inf = no echo) at robot-frame angles."""
@@ -194,6 +204,7 @@ class IslandBuilder(BuilderView):
         self._departure = Departure(island.id, exit_index, prefix)
         self._openings.reset()  # openings count from a hallway driven after the handover
         self._strategy = prefix
+        self._path.restart(self._odom)
         self._path_m += sum(s.metres for s in prefix.steps if s.kind is PrimitiveKind.GO)
         self._gate.retry_at_path_m = self._path_m
         self._history.quick.clear()
@@ -263,6 +274,7 @@ class IslandBuilder(BuilderView):
                 self._start_attempt(first=True)
             else:
                 self._track.rel.reset()
+                self._path.restart(self._odom)
                 self._state = _State.FOLLOWING
         if self._state is _State.FOLLOWING:
             self._maybe_attempt()
@@ -432,7 +444,7 @@ class IslandBuilder(BuilderView):
         )
         arrival = None if evidence[3] is None else facing_exit(
             island, evidence[3], self.hooks.arrival_match_deg)
-        edge = with_exits(book.edge_to(island.id, self._strategy, self._path_m,
+        edge = with_exits(book.edge_to(island.id, self._edge_strategy(), self._path_m,
                                        Pose2D(-shift.x, -shift.y, 0.0), att.epsilon_m),
                           self._departure, None if arrival is None else arrival.index)
         updates = exit_updates(edge, None if edge is None else (edge.source, edge.target),
@@ -449,26 +461,18 @@ class IslandBuilder(BuilderView):
         self._state = _State.RETURNING
 
     def _probe_step(self) -> Twist:
-        """Drive to the origin past the legs, face the anchor's heading, look around (a full
-        circle), then accept the island there if the look localizes in the model from offset
-        guesses (the new-island check), else at the best origin along the driven legs."""
+        """To the origin past the legs and look around there (`star.probe_step`); then accept
+        the island there if the look localizes in the model from offset guesses (the
+        new-island check), else at the best origin along the driven legs."""
         att = self._attempt
         assert att is not None and att.probe is not None and self._odom is not None
-        pr, sc = att.probe, self.config.star
-        rel = self._odom.relative_to(att.anchor.compose(pr.shift))  # robot in candidate frame
-        cmd = motion.look_around(pr, rel, math.radians(sc.heading_tol_deg), self._odom.theta,
-                                 self._ahead_free_m(), sc)
-        if cmd is not None:
-            return cmd
-        there = math.hypot(rel.x, rel.y) <= self.config.revisit.path_clearance_m
-        verdict = star.probe_verdict(self.measures, pr, concat(pr.points), self._odom,
-                                     att.anchor, att.points, there)
-        self.diagnostics.probed(ProbeOutcome.KEPT if verdict.kept else ProbeOutcome.FELL_BACK)
-        if verdict.kept:
-            att.points.append(verdict.look)
-        att.probe = verdict.next  # the completed model peaks further on: probe there too
-        if verdict.next is None:
-            self._accept_at(verdict.model, verdict.shift, verdict.measure)
+        got = star.probe_step(self.measures, att, self._odom, self._ahead_free_m(),
+                              self.config.revisit.path_clearance_m)
+        if not isinstance(got, star.ProbeVerdict):
+            return got
+        self.diagnostics.probed(ProbeOutcome.KEPT if got.kept else ProbeOutcome.FELL_BACK)
+        if got.next is None:
+            self._accept_at(got.model, got.shift, got.measure)
         return STOP
 
     def _dismiss(self, partial: bool, reason: DismissReason | None = None) -> None:
@@ -484,12 +488,8 @@ class IslandBuilder(BuilderView):
     def _return_step(self) -> Twist:
         att = self._attempt
         assert att is not None
-        gave_up = self._take_give_up()
-        # A stalled drive back only turns to heading 0 (a disk always can); a stalled turn
-        # ends it where it is.
-        cmd = None if gave_up and att.return_stalled else motion.return_to_centre(
-            self._pose_in_anchor(), self.config.star, turn_only=att.return_stalled or gave_up)
-        att.return_stalled |= gave_up
+        cmd = star.return_step(att, self._pose_in_anchor(), self.config.star,
+                               self._take_give_up())
         if cmd is not None:
             return cmd
         accepted = att.outcome is EventKind.ISLAND_ACCEPTED
@@ -509,6 +509,7 @@ class IslandBuilder(BuilderView):
         self._openings.entry = None
         if island is not None:
             self._strategy = ControlStrategy(())
+            self._path.restart(origin)  # the edge starts at the origin, facing its heading 0
             self._departure = None
         self._emit(EventKind.HANDED_BACK, anchor_odom=origin,
                    accepted_island_id=None if island is None else island.id)
@@ -552,7 +553,7 @@ class IslandBuilder(BuilderView):
         origin_odom = self._odom.compose(rec.pose.inverse())  # the island origin, odometry
         prev = self.ledger.last_island
         edge = self.ledger.revisit(
-            island.id, self._strategy, self._path_m,
+            island.id, self._edge_strategy(), self._path_m,
             rec.pose if strategy_end is None else strategy_end, self.epsilon_m,
             self.config.revisit.strategy_min_go_m, origin_odom, self._track.rel.heading_sigma_rad)
         came = arrival_heading(approach_path(self._strategy, APPROACH_M),

@@ -27,7 +27,7 @@ from island_mapping.core.builder.checks import (
     localizes_back,
     register_look,
 )
-from island_mapping.core.builder.config import BuilderConfig
+from island_mapping.core.builder.config import BuilderConfig, StarConfig
 from island_mapping.core.builder.epsilon import Measures
 from island_mapping.core.builder.events import EventKind
 from island_mapping.core.builder.geometry import concat, drive_clear, from_frame, to_frame
@@ -39,6 +39,8 @@ from island_mapping.core.builder.motion import (
     Twist,
     along_line,
     drive_line,
+    look_around,
+    return_to_centre,
     turn_to,
 )
 from island_mapping.core.placement import PlaceKind, PlacementConfig, classify_place
@@ -498,3 +500,33 @@ def probe_verdict(
     nxt = None if on is None else Probe(model, on[0], on[1], shift, here, model,
                                         probe.climbs + 1)
     return ProbeVerdict(True, model, shift, here, look, nxt)
+
+
+def probe_step(m: Measures, att: Attempt, odom: Pose2D, ahead_free_m: float,
+               there_m: float) -> Twist | ProbeVerdict:
+    """Drive to the attempt's probed origin, face the anchor's heading and look around (a full
+    circle): the twist meanwhile; then the look's verdict (`probe_verdict`; the robot got
+    there when within there_m [m] of the origin). A kept look joins the attempt's points, and
+    the attempt's probe becomes the verdict's next (None: accept now)."""
+    pr, sc = att.probe, m.cfg.star
+    assert pr is not None
+    rel = odom.relative_to(att.anchor.compose(pr.shift))  # robot in the candidate's frame
+    cmd = look_around(pr, rel, math.radians(sc.heading_tol_deg), odom.theta, ahead_free_m, sc)
+    if cmd is not None:
+        return cmd
+    there = math.hypot(rel.x, rel.y) <= there_m
+    verdict = probe_verdict(m, pr, concat(pr.points), odom, att.anchor, att.points, there)
+    if verdict.kept:
+        att.points.append(verdict.look)
+    att.probe = verdict.next  # the completed model peaks further on: probe there too
+    return verdict
+
+
+def return_step(att: Attempt, rel: Pose2D, sc: StarConfig, gave_up: bool) -> Twist | None:
+    """Back onto the origin facing heading 0 (`rel`: the robot in the origin's frame; None once
+    there). A drive back that stalled (`gave_up`) only turns to heading 0, a disk always can;
+    a turn that stalled too ends the return where the robot is."""
+    cmd = None if gave_up and att.return_stalled else return_to_centre(
+        rel, sc, turn_only=att.return_stalled or gave_up)
+    att.return_stalled |= gave_up
+    return cmd

@@ -1,0 +1,120 @@
+"""An edge's strategy from the way the robot drove (odometry), instead of the hall follower's
+own record of its primitives.
+
+The follower records `Rot` only for its turns in place; the steering inside a `Go` (round a
+corner, through a doorway at an angle, back off a wall) is not in it, and a replay of such a
+record by hall centring can head somewhere else (`Rot 37, Go 816` after a doorway). Here the
+odometric positions the follower drove through are kept and simplified to a polyline
+(Douglas-Peucker, `tolerance_m`); each corner becomes `Rot` to the next leg's direction and each
+leg a `Go` of its length, then a last `Rot` to the heading the record ends with. A way driven
+out and back (a dead end) keeps its far end as a corner; a back-off along the way vanishes.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+from island_msgs_py.types import (
+    ControlStrategy,
+    FloatArray,
+    Pose2D,
+    PrimitiveKind,
+    StrategyPrimitive,
+    wrap_angle,
+)
+
+from island_mapping.core.graph import normalize_strategy
+
+SPACING_M = 0.05
+"""A position is kept once the robot moved this far from the last one kept [m]."""
+MAX_POINTS = 20_000
+"""Past this many positions the record is simplified in place (its memory stays bounded)."""
+
+
+def simplify(points: FloatArray, tolerance_m: float) -> FloatArray:
+    """Douglas-Peucker: the corners of `points` ((N, 2) [m]) that keep every point within
+    tolerance_m of the polyline; the first and last points always."""
+    n = points.shape[0]
+    if n <= 2:
+        return points.copy()
+    keep = np.zeros(n, dtype=bool)
+    keep[0] = keep[-1] = True
+    stack = [(0, n - 1)]
+    while stack:
+        i, j = stack.pop()
+        if j <= i + 1:
+            continue
+        d = _distances(points[i + 1:j], points[i], points[j])
+        k = int(np.argmax(d))
+        if d[k] > tolerance_m:
+            k += i + 1
+            keep[k] = True
+            stack += [(i, k), (k, j)]
+    return points[keep]
+
+
+def _distances(pts: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    """Distance of each point to the segment a-b [m]."""
+    ab = b - a
+    den = float(ab @ ab)
+    t = np.zeros(pts.shape[0]) if den == 0.0 else np.clip((pts - a) @ ab / den, 0.0, 1.0)
+    return np.asarray(np.hypot(*(pts - a - t[:, None] * ab).T))
+
+
+def strategy_from_path(points: FloatArray, start_heading_rad: float, end_heading_rad: float,
+                       tolerance_m: float) -> ControlStrategy:
+    """Rot/Go steps along the simplified polyline of `points` (odometry, (N, 2) [m]), starting
+    at heading start_heading_rad and ending at end_heading_rad (odometry) [rad]."""
+    corners = simplify(points, tolerance_m)
+    steps: list[StrategyPrimitive] = []
+    heading = start_heading_rad
+    for a, b in itertools.pairwise(corners):
+        length_cm = round(100.0 * math.hypot(*(b - a)))
+        if length_cm == 0:
+            continue
+        leg = math.atan2(b[1] - a[1], b[0] - a[0])
+        steps += [_rot(leg - heading), StrategyPrimitive(PrimitiveKind.GO, length_cm)]
+        heading = leg
+    steps.append(_rot(end_heading_rad - heading))
+    return normalize_strategy(ControlStrategy(tuple(steps)))
+
+
+def _rot(angle_rad: float) -> StrategyPrimitive:
+    return StrategyPrimitive(PrimitiveKind.ROT, round(math.degrees(wrap_angle(angle_rad))) % 360)
+
+
+class PathRecord:
+    """The odometric positions driven since `restart` (fed by `add`), as a strategy."""
+
+    def __init__(self, tolerance_m: float) -> None:
+        self.tolerance_m = tolerance_m
+        self._start: Pose2D | None = None
+        self._end: Pose2D | None = None
+        self._points: list[tuple[float, float]] = []
+
+    def restart(self, pose: Pose2D | None) -> None:
+        """The record starts again at `pose` (None: empty until the next `add`)."""
+        self._start = self._end = pose
+        self._points = [] if pose is None else [(pose.x, pose.y)]
+
+    def add(self, pose: Pose2D) -> None:
+        """The robot drove to `pose` (odometry)."""
+        if self._start is None:
+            self.restart(pose)
+            return
+        self._end = pose
+        last = self._points[-1]
+        if math.hypot(pose.x - last[0], pose.y - last[1]) >= SPACING_M:
+            self._points.append((pose.x, pose.y))
+        if len(self._points) > MAX_POINTS:
+            kept = simplify(np.array(self._points), 0.5 * self.tolerance_m)
+            self._points = [(float(x), float(y)) for x, y in kept]
+
+    def strategy(self) -> ControlStrategy:
+        """The record so far: from the start's heading along the way to the last pose's."""
+        if self._start is None or self._end is None:
+            return ControlStrategy(())
+        pts = np.array([*self._points, (self._end.x, self._end.y)])
+        return strategy_from_path(pts, self._start.theta, self._end.theta, self.tolerance_m)
