@@ -82,6 +82,15 @@ def test_a_long_record_stays_bounded_and_right() -> None:
     assert _kinds(rec.strategy()).count("G") == 10
 
 
+def test_a_record_that_is_off_keeps_nothing() -> None:
+    """tolerance_m 0 (the builder's default: edges keep the follower's record)."""
+    rec = PathRecord(0.0)
+    rec.restart(Pose2D(0.0, 0.0, 0.0))
+    for x in np.arange(0.0, 5.0, 0.01):
+        rec.add(Pose2D(float(x), 0.1 * math.sin(float(x)), 0.0))
+    assert str(rec.strategy()) == ""
+
+
 def _l_world() -> World:
     """A 2 m corridor east 12 m, then north 10 m to a dead end."""
     segs = [[-4.0, -1.0, 11.0, -1.0], [11.0, -1.0, 11.0, 11.0], [-4.0, 1.0, 9.0, 1.0],

@@ -86,7 +86,8 @@ def _rot(angle_rad: float) -> StrategyPrimitive:
 
 
 class PathRecord:
-    """The odometric positions driven since `restart` (fed by `add`), as a strategy."""
+    """The odometric positions driven since `restart` (fed by `add`), as a strategy; off
+    (keeps nothing, an empty strategy) with tolerance_m <= 0."""
 
     def __init__(self, tolerance_m: float) -> None:
         self.tolerance_m = tolerance_m
@@ -100,7 +101,9 @@ class PathRecord:
         self._points = [] if pose is None else [(pose.x, pose.y)]
 
     def add(self, pose: Pose2D) -> None:
-        """The robot drove to `pose` (odometry)."""
+        """The robot drove to `pose` (odometry); nothing is kept with tolerance_m <= 0 (off)."""
+        if self.tolerance_m <= 0.0:
+            return
         if self._start is None:
             self.restart(pose)
             return
@@ -110,6 +113,8 @@ class PathRecord:
             self._points.append((pose.x, pose.y))
         if len(self._points) > MAX_POINTS:
             kept = simplify(np.array(self._points), 0.5 * self.tolerance_m)
+            if kept.shape[0] > MAX_POINTS // 2:  # a wander with corners everywhere
+                kept = np.concatenate((kept[:-1:2], kept[-1:]))
             self._points = [(float(x), float(y)) for x, y in kept]
 
     def strategy(self) -> ControlStrategy:
