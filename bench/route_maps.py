@@ -52,9 +52,10 @@ def measure_map(world: str, graph_file: Path, n_routes: int) -> dict[str, object
     edges = [follow_route(graph, [e.source, e.target], setup, rng=np.random.default_rng(0),
                           start=graph.get_island(e.source).origin_truth)
              for e in graph.iter_edges()]
+    draws = draw_pairs(graph, n_routes, np.random.default_rng(PAIRS_SEED), cfg) if len(
+        graph) >= 2 else []  # one island: no route to draw
     routes = [follow_route(graph, d.route, setup, rng=np.random.default_rng(d.seed),
-                           start=d.start)
-              for d in draw_pairs(graph, n_routes, np.random.default_rng(PAIRS_SEED), cfg)]
+                           start=d.start) for d in draws]
     runs = edges + routes
     return {
         "world": world, "map": str(graph_file), "islands": len(graph),

@@ -16,6 +16,7 @@ from island_mapping.core.tracker import IslandTracker, TrackerConfig
 from island_mapping.evaluation.explore import explore
 from island_mapping.evaluation.navigate import SimSetup
 from island_mapping.evaluation.routes import (
+    draw_pairs,
     evaluate_routes,
     follow_route,
     follow_route_global_odometry,
@@ -163,6 +164,10 @@ def test_bad_inputs_are_named() -> None:
         NavigateConfig(sparse_look_points=-1)
     with pytest.raises(NavigateError, match="n_pairs"):
         evaluate_routes(graph, SimSetup(world), 0, np.random.default_rng(0), ODOM_AT_EXPLORATION)
+    one = TopoGraph()
+    one.add_island(graph.get_island(0))
+    with pytest.raises(NavigateError, match="at least 2 islands, the graph has 1"):
+        draw_pairs(one, 3, np.random.default_rng(0))
 
 
 def test_tracker_localizes_in_the_island_it_is_near_and_follows_odometry_drift() -> None:

@@ -267,9 +267,12 @@ class RouteDraw:
 def draw_pairs(graph: TopoGraph, n_pairs: int, rng: np.random.Generator,
                cfg: NavigateConfig | None = None) -> list[RouteDraw]:
     """`n_pairs` draws of ordered pairs of distinct islands, uniform, from `rng`; a pair joined
-    by no route in `graph` is drawn (and uses up its randomness) but left out."""
+    by no route in `graph` is drawn (and uses up its randomness) but left out. NavigateError
+    when the graph has fewer than 2 islands."""
     c = cfg if cfg is not None else NavigateConfig()
     ids = graph.island_ids()
+    if len(ids) < 2:
+        raise NavigateError(f"draw_pairs: needs at least 2 islands, the graph has {len(ids)}")
     draws: list[RouteDraw] = []
     for _ in range(n_pairs):
         a, b = (int(x) for x in rng.choice(ids, size=2, replace=False))
