@@ -182,7 +182,7 @@ def test_plain_corridor_star_is_dismissed_partially_and_returns_to_its_centre() 
 
 
 def test_corridor_end_is_accepted_with_a_full_star_and_linked_to_the_start_island() -> None:
-    builder = IslandBuilder(BuilderConfig())
+    builder = IslandBuilder(BuilderConfig(edge_path_tolerance_m=0.0))  # the follower's record
     builder.set_strategy(ControlStrategy.parse("Go 999"))  # stale: must be replaced
     run = run_builder(dead_end_world(), Pose2D(-14.0, 0.0, 0.0), builder, 140.0,
                       lambda p: 0.05 * p, stop_x=-1.5)
@@ -220,7 +220,7 @@ def test_corridor_end_is_accepted_with_a_full_star_and_linked_to_the_start_islan
 
 
 def test_edge_carries_the_followers_strategy_since_the_last_island() -> None:
-    builder = IslandBuilder(BuilderConfig())
+    builder = IslandBuilder(BuilderConfig(edge_path_tolerance_m=0.0))  # the follower's record
     world, start = dead_end_world(), Pose2D(-14.0, 0.0, 0.0)
     rng = np.random.default_rng(1)
     robot = SimRobot(world, start, rng, odometry=OdometryConfig.exact())
@@ -508,7 +508,7 @@ def run_there_and_back(
 
 
 def test_a_known_island_is_recognised_linked_and_docked_onto_instead_of_rebuilt() -> None:
-    builder = IslandBuilder(BuilderConfig())
+    builder = IslandBuilder(BuilderConfig(edge_path_tolerance_m=0.0))  # the follower's record
     run = run_there_and_back(builder, 150.0)
     acc = [e for e in run.events if e.kind is EventKind.ISLAND_ACCEPTED]
     rev = [e for e in run.events if e.kind is EventKind.ISLAND_REVISITED]
@@ -683,7 +683,8 @@ def test_a_star_at_a_known_island_becomes_a_revisit_not_a_duplicate() -> None:
     the follower's record ended), not from the heading of the star's last leg."""
 
     def run(at_star: bool) -> Run:
-        cfg = BuilderConfig(revisit=RevisitConfig(history_m=0.1, at_star=at_star))
+        cfg = BuilderConfig(revisit=RevisitConfig(history_m=0.1, at_star=at_star),
+                            edge_path_tolerance_m=0.0)  # the follower's record
         return run_there_and_back(IslandBuilder(cfg), 200.0)
 
     without = run(at_star=False)

@@ -322,7 +322,7 @@ class BuilderConfig:
         },
     )
     edge_path_tolerance_m: float = field(
-        default=0.0,
+        default=0.5,
         metadata={"help": "an edge's strategy is the way the follower drove by odometry, "
                           "simplified to a polyline within this (core.builder.path_record); "
                           "0 = the follower's own record of its primitives [m]"},
