@@ -212,7 +212,9 @@ def test_explore_then_navigate_on_the_map_it_built() -> None:
     assert len(res.islands) >= 2 and res.edges
     e = res.edges[0]
     assert (e.source, e.target) == (0, 1) and e.strategy.steps
-    assert e.strategy.length_m == pytest.approx(e.length_m, abs=0.3)
+    # the way driven as a polyline: its legs are chords of the path followed (the
+    # follower's wobble and back-offs are not in it), so a little shorter than the path
+    assert 0.95 * e.length_m - 0.3 <= e.strategy.length_m <= e.length_m + 0.3
     first, second = res.islands[0], res.islands[1]
     assert first.origin_truth == Pose2D(3.0, 0.0, 0.0)
     assert second.origin_truth is not None
