@@ -8,7 +8,8 @@ of" another is composed with it: a (+) b is b's pose, given in a's frame, in a's
 - pose algebra on (N, 3) arrays: `compose_poses`, `relative_poses`, `inverse_poses`;
 - points and frames: `from_frame`, `to_frame`, `ranges_to_points` (a range scan -> points);
 - points and segments: `point_segment_distance`, `closest_on_segments`,
-  `closest_on_segment_rows`, `clearance_m`.
+  `closest_on_segment_rows`, `clearance_m`;
+- polylines: `douglas_peucker` (traced walls of imported worlds, the way an edge drove).
 
 Each formula is written once here; the order of the floating-point operations is part of the
 contract (the offline exploration is reproduced bit for bit), so change none without measuring.
@@ -216,3 +217,29 @@ def clearance_m(points: npt.ArrayLike, segments: FloatArray) -> FloatArray:
         ex, ey = wx - t * d[:, 0], wy - t * d[:, 1]
         out[s : s + step] = np.sqrt(np.min(ex * ex + ey * ey, axis=1))
     return out
+
+
+def douglas_peucker(pts: FloatArray, tol: float) -> FloatArray:
+    """Douglas-Peucker simplification of an open polyline (N, 2): the points that keep every
+    point within tol of the simplified line (the same unit), both ends always."""
+    n = pts.shape[0]
+    keep = np.zeros(n, dtype=bool)
+    keep[0] = keep[-1] = True
+    stack = [(0, n - 1)]
+    while stack:
+        i0, i1 = stack.pop()
+        if i1 - i0 < 2:
+            continue
+        mid = pts[i0 + 1 : i1]
+        chord = np.broadcast_to(np.concatenate([pts[i0], pts[i1]]), (mid.shape[0], 4))
+        foot, _ = closest_on_segment_rows(mid, chord)
+        # Lattice points tie at whole-pixel distances: this rounding (norm of p - foot) decides
+        # them as the traced worlds were made (Willow: 3550 walls).
+        d = np.linalg.norm(mid - foot, axis=1)
+        k = int(np.argmax(d))
+        if d[k] > tol:
+            km = i0 + 1 + k
+            keep[km] = True
+            stack.append((i0, km))
+            stack.append((km, i1))
+    return pts[keep]

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from island_msgs_py.geometry import clearance_m, closest_on_segment_rows
+from island_msgs_py.geometry import clearance_m, douglas_peucker
 from island_msgs_py.limits import (
     MAX_COORD_M,
     MAX_WORLD_SEGMENTS,
@@ -221,34 +221,9 @@ def _simplify_closed(pts: FloatArray, tol: float) -> FloatArray:
     if n <= 3 or tol <= 0:
         return pts
     far = int(np.argmax(np.sum((pts - pts[0]) ** 2, axis=1)))
-    a = _douglas_peucker(pts[: far + 1], tol)
-    b = _douglas_peucker(np.vstack([pts[far:], pts[:1]]), tol)
+    a = douglas_peucker(pts[: far + 1], tol)
+    b = douglas_peucker(np.vstack([pts[far:], pts[:1]]), tol)
     return np.vstack([a[:-1], b[:-1]])
-
-
-def _douglas_peucker(pts: FloatArray, tol: float) -> FloatArray:
-    """Douglas-Peucker simplification of an open polyline (keeps both ends)."""
-    n = pts.shape[0]
-    keep = np.zeros(n, dtype=bool)
-    keep[0] = keep[-1] = True
-    stack = [(0, n - 1)]
-    while stack:
-        i0, i1 = stack.pop()
-        if i1 - i0 < 2:
-            continue
-        mid = pts[i0 + 1 : i1]
-        chord = np.broadcast_to(np.concatenate([pts[i0], pts[i1]]), (mid.shape[0], 4))
-        foot, _ = closest_on_segment_rows(mid, chord)
-        # Lattice points tie at whole-pixel distances: this rounding (norm of p - foot) decides
-        # them as the traced worlds were made (Willow: 3550 walls).
-        d = np.linalg.norm(mid - foot, axis=1)
-        k = int(np.argmax(d))
-        if d[k] > tol:
-            km = i0 + 1 + k
-            keep[km] = True
-            stack.append((i0, km))
-            stack.append((km, i1))
-    return pts[keep]
 
 
 # ----------------------------------------------------------------------------- importers

@@ -144,18 +144,18 @@ class IslandBuilder(BuilderView):
     def set_strategy(self, strategy: ControlStrategy) -> None:
         """The hall follower's strategy executed since its last reset (at the last island, or
         at the explorer's handover: then it follows the handover's prefix)."""
-        dep = self._departure
-        self._strategy = strategy if dep is None else ControlStrategy(
-            dep.prefix.steps + strategy.steps)
-        self._strategy = ControlStrategy(self._strategy.steps + self._openings.steps())
+        self._strategy = self._with_prefix(strategy)
+
+    def _with_prefix(self, record: ControlStrategy) -> ControlStrategy:
+        """`record` after the handover's prefix (if any), then the opening's steps (if any)."""
+        prefix = () if self._departure is None else self._departure.prefix.steps
+        return ControlStrategy(prefix + record.steps + self._openings.steps())
 
     def _edge_strategy(self) -> ControlStrategy:
-        """The strategy of the edge the robot is on: the follower's record, or (with
-        edge_path_tolerance_m) the way it drove, after the handover's prefix."""
-        if self.config.edge_path_tolerance_m <= 0.0:
-            return self._strategy
-        prefix = () if self._departure is None else self._departure.prefix.steps
-        return ControlStrategy(prefix + self._path.strategy().steps + self._openings.steps())
+        """The strategy of the edge the robot is on: the way it drove (edge_path_tolerance_m
+        > 0), or the follower's record."""
+        on = self.config.edge_path_tolerance_m > 0.0
+        return self._with_prefix(self._path.strategy()) if on else self._strategy
 
     def on_scan(self, t_s: float, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike) -> None:
         """A sonar scan: ranges from the robot centre [m] (inf = no echo) at robot-frame angles."""

@@ -16,15 +16,16 @@ import itertools
 import math
 
 import numpy as np
+from island_msgs_py.geometry import douglas_peucker
 from island_msgs_py.types import (
     ControlStrategy,
     FloatArray,
     Pose2D,
     PrimitiveKind,
     StrategyPrimitive,
-    wrap_angle,
 )
 
+from island_mapping.core.builder.motion import rot
 from island_mapping.core.graph import normalize_strategy
 
 SPACING_M = 0.05
@@ -33,41 +34,11 @@ MAX_POINTS = 20_000
 """Past this many positions the record is simplified in place (its memory stays bounded)."""
 
 
-def simplify(points: FloatArray, tolerance_m: float) -> FloatArray:
-    """Douglas-Peucker: the corners of `points` ((N, 2) [m]) that keep every point within
-    tolerance_m of the polyline; the first and last points always."""
-    n = points.shape[0]
-    if n <= 2:
-        return points.copy()
-    keep = np.zeros(n, dtype=bool)
-    keep[0] = keep[-1] = True
-    stack = [(0, n - 1)]
-    while stack:
-        i, j = stack.pop()
-        if j <= i + 1:
-            continue
-        d = _distances(points[i + 1:j], points[i], points[j])
-        k = int(np.argmax(d))
-        if d[k] > tolerance_m:
-            k += i + 1
-            keep[k] = True
-            stack += [(i, k), (k, j)]
-    return points[keep]
-
-
-def _distances(pts: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
-    """Distance of each point to the segment a-b [m]."""
-    ab = b - a
-    den = float(ab @ ab)
-    t = np.zeros(pts.shape[0]) if den == 0.0 else np.clip((pts - a) @ ab / den, 0.0, 1.0)
-    return np.asarray(np.hypot(*(pts - a - t[:, None] * ab).T))
-
-
 def strategy_from_path(points: FloatArray, start_heading_rad: float, end_heading_rad: float,
                        tolerance_m: float) -> ControlStrategy:
     """Rot/Go steps along the simplified polyline of `points` (odometry, (N, 2) [m]), starting
     at heading start_heading_rad and ending at end_heading_rad (odometry) [rad]."""
-    corners = simplify(points, tolerance_m)
+    corners = douglas_peucker(points, tolerance_m)
     steps: list[StrategyPrimitive] = []
     heading = start_heading_rad
     for a, b in itertools.pairwise(corners):
@@ -75,14 +46,10 @@ def strategy_from_path(points: FloatArray, start_heading_rad: float, end_heading
         if length_cm == 0:
             continue
         leg = math.atan2(b[1] - a[1], b[0] - a[0])
-        steps += [_rot(leg - heading), StrategyPrimitive(PrimitiveKind.GO, length_cm)]
+        steps += [rot(leg - heading), StrategyPrimitive(PrimitiveKind.GO, length_cm)]
         heading = leg
-    steps.append(_rot(end_heading_rad - heading))
+    steps.append(rot(end_heading_rad - heading))
     return normalize_strategy(ControlStrategy(tuple(steps)))
-
-
-def _rot(angle_rad: float) -> StrategyPrimitive:
-    return StrategyPrimitive(PrimitiveKind.ROT, round(math.degrees(wrap_angle(angle_rad))) % 360)
 
 
 class PathRecord:
@@ -112,7 +79,7 @@ class PathRecord:
         if math.hypot(pose.x - last[0], pose.y - last[1]) >= SPACING_M:
             self._points.append((pose.x, pose.y))
         if len(self._points) > MAX_POINTS:
-            kept = simplify(np.array(self._points), 0.5 * self.tolerance_m)
+            kept = douglas_peucker(np.array(self._points), 0.5 * self.tolerance_m)
             if kept.shape[0] > MAX_POINTS // 2:  # a wander with corners everywhere
                 kept = np.concatenate((kept[:-1:2], kept[-1:]))
             self._points = [(float(x), float(y)) for x, y in kept]
