@@ -232,6 +232,13 @@ class ExplorerConfig:
         metadata={"help": "see return_shortcut_m: the shortest stretch of the way that counts "
                           "as a loop [m]"},
     )
+    way_tolerance_m: float = field(
+        default=0.5,
+        metadata={"help": "the way back to the island left, and a lost robot's next prefix, "
+                          "are the odometric way driven since the last dock, as a polyline "
+                          "within this of it, without its loops (return_shortcut_m); 0: the "
+                          "explorer's own moves and the follower's record [m]"},
+    )
     exit_cap_s: float = field(
         default=300.0,
         metadata={"help": "sim time the builder may spend exploring one exit before the explorer "
@@ -382,7 +389,7 @@ class ExplorerConfig:
                               "revisit_max_mahalanobis2"),
                        ("depart_min_free_m", "lane_snap_m", "return_shortcut_m",
                         "relocalize_max_shift_m", "relocalize_max_turn_deg",
-                        "relocalize_max_residual_m"))
+                        "relocalize_max_residual_m", "way_tolerance_m"))
         _check_numbers(self, ("side_min_width_m", "side_near_island_m", "side_merge_m",
                               "side_merge_deg", "side_chain_m", "side_search_m"),
                        ("side_max_turn_deg", "side_direct_m", "failed_edge_penalty_m"))

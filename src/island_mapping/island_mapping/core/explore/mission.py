@@ -42,6 +42,7 @@ from island_msgs_py.types import (
 )
 
 from island_mapping.core.builder import BuilderEvent, EventKind
+from island_mapping.core.builder.path_record import PathRecord
 from island_mapping.core.explore.config import ExploreError, ExplorerConfig
 from island_mapping.core.explore.departure import STOP, drive_departure, go_clear, plan_departure
 from island_mapping.core.explore.novelty import known_space_costs
@@ -175,6 +176,7 @@ class Explorer:
         self._drive: Drive | None = None
         self._gen: Generator[Step, None, None] | None = None
         self._since_dock = MotionRecord(Pose2D(0.0, 0.0, 0.0))
+        self._way = PathRecord(self.cfg.way_tolerance_m)  # everything since the dock
         self._seen: deque[tuple[float, FloatArray]] = deque()  # (t [s], echoes, odometry frame)
         self._drove = False  # the explorer answered the last scan
         self._blocked: set[tuple[int, int]] = set()  # marked by us, maybe not yet in the map
@@ -220,6 +222,7 @@ class Explorer:
             self._gen = self._mission()
         self._drive.sense = sense
         self._since_dock.update(sense.odom, counted=self._drove)
+        self._way.add(sense.odom)
         self._seen.append((sense.t_s, sense.points_odom()))
         while self._seen and self._seen[0][0] < sense.t_s - self.cfg.look_buffer_s:
             self._seen.popleft()
@@ -481,6 +484,7 @@ class Explorer:
         assert e.accepted_island_id is not None
         origin = e.anchor_odom if e.anchor_odom is not None else e.odom_pose
         self._since_dock = MotionRecord(self._sense.odom)
+        self._way.restart(origin)
         return _Here(e.accepted_island_id, origin)
 
     def _return(self, here: _Here, exit_index: int | None) -> Generator[Step, None, _Here]:
@@ -489,7 +493,9 @@ class Explorer:
         self.counts["returns"] += 1
         d = self._drive
         assert d is not None
-        out = ControlStrategy(self._since_dock.strategy().steps + self._follower.steps)
+        driven = self._way_driven()
+        out = driven if driven is not None else ControlStrategy(
+            self._since_dock.strategy().steps + self._follower.steps)
         way = without_loops(out, self.cfg.return_shortcut_m, self.cfg.return_loop_m)
         d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
         island = self.graph.get_island(here.island_id)
@@ -519,6 +525,7 @@ class Explorer:
         here = _Here(island_id, origin)
         self._requests.append(Docked(here.island_id, here.origin_odom))
         self._since_dock = MotionRecord(self._sense.odom)
+        self._way.restart(origin)
         self._here = island_id
         return here
 
@@ -527,9 +534,19 @@ class Explorer:
         last island docked at by no known exit, with everything driven since as the prefix."""
         self.state = ExplorerState.LOST
         self.counts["lost"] += 1
-        self._requests.append(Handover(last.island_id, None, self._since_dock.strategy()))
+        way = self._way_driven()
+        prefix = self._since_dock.strategy() if way is None else without_loops(
+            way, self.cfg.return_shortcut_m, self.cfg.return_loop_m)
+        self._requests.append(Handover(last.island_id, None, prefix))
         self.state = ExplorerState.HANDED_OVER
         return (yield from self._handed_over(last, None))
+
+    def _way_driven(self) -> ControlStrategy | None:
+        """Everything driven since the last dock, by whoever drove (odometry's polyline from
+        that island's origin), or None with way_tolerance_m 0. The records it replaces (the
+        explorer's own moves, the follower's primitives) miss the follower's turns while
+        driving, and a lost robot's own record leaves out every stretch the follower drove."""
+        return None if self.cfg.way_tolerance_m <= 0.0 else self._way.strategy()
 
     def _mark_blocked(self, island_id: int, exit_index: int) -> None:
         self._blocked.add((island_id, exit_index))
