@@ -108,6 +108,10 @@ def _shutting_down(context: Any) -> bool:
     return True
 
 
+SPIN_WAKE_S = 0.5
+"""The node's spin loop wakes at least this often to see whether its context was shut down [s]."""
+
+
 def spin_guarded(executor: Any, node: Node) -> None:
     """`executor.spin()`, except that an exception escaping a callback (a bug some message
     triggered: the callbacks turn bad input into counted warnings themselves) is logged with its
@@ -116,7 +120,7 @@ def spin_guarded(executor: Any, node: Node) -> None:
     failures = 0
     while executor.context.ok():
         try:
-            executor.spin_once()
+            executor.spin_once(timeout_sec=SPIN_WAKE_S)
         except Exception:  # the node survives; the traceback goes to its log
             if _shutting_down(executor.context):
                 raise  # what failed was the shut-down context (Ctrl-C, SIGTERM)
