@@ -25,6 +25,7 @@ from island_mapping.core.route import Sense
 from island_msgs_py.types import (
     ControlStrategy,
     Exit,
+    ExitUpdate,
     Island,
     LineModel,
     ModelType,
@@ -126,3 +127,23 @@ def test_off_the_way_back_and_prefix_are_the_records() -> None:
 def test_a_bad_tolerance_is_refused_by_name(bad: float) -> None:
     with pytest.raises(ExploreError, match="way_tolerance_m"):
         ExplorerConfig(way_tolerance_m=bad)
+
+
+def test_a_handover_in_the_step_of_a_hand_back_waits_for_the_builder() -> None:
+    """The map holds the island when the builder hands back, and the departure needs no
+    motion (the robot faces the exit, a lane from the origin): the whole choice runs in that
+    one step. The hand-back event of that step came before the handover and must not end the
+    new trip at once (office 11 seed 2 at 7200 s: the exit was marked blocked, the explorer
+    drove on by the map while the builder followed, and the next dock raised BuilderError)."""
+    origin = Pose2D(1.0, 2.0, 0.3)
+    robot = Robot(origin)
+    ex = Explorer(ExplorerConfig())
+    island = Island(0, LineModel(np.zeros((0, 4))), ModelType.LINE, 1.0, 0.0,
+                    exits=(Exit(0, 0.0, 1.0),))
+    ex.on_graph(TopoGraph.from_parts([island], []))
+    ex.on_events([BuilderEvent(EventKind.HANDED_BACK, 0.0, origin, 0.1, anchor_odom=origin,
+                               accepted_island_id=0)])
+    out = ex.step(robot.sense())
+    assert any(isinstance(r, Handover) and r.exit_index == 0 for r in out.requests)
+    assert not any(isinstance(r, ExitUpdate) for r in out.requests)  # not blocked at once
+    assert not out.drive and not ex.done  # the builder side drives now

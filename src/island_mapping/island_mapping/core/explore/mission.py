@@ -430,6 +430,9 @@ class Explorer:
         explorer asks it to stop and drives the robot back to `here`, and the exit is blocked.
         exit_index None: leaving after getting lost (nothing to block)."""
         self._follower = ControlStrategy(())
+        # The events of this step came before the handover (the builder takes it after the
+        # step): the hand-back that ended the last trip must not end this one too.
+        self._events.clear()
         t0 = self._sense.t_s
         watch = OpeningWatch(self.cfg, self._since_dock.strategy())
         stuck = StuckWatch(self.cfg.stuck_s, self.cfg.stuck_m, self._sense)
