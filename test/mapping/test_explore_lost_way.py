@@ -64,24 +64,32 @@ def _follower_l() -> list[tuple[float, float]]:
     return ([(0.5, 0.0)] * 60 + [(0.3, 0.5 * math.pi / 2.0)] * 20 + [(0.5, 0.0)] * 40)
 
 
-def _run_until_lost(cfg: ExplorerConfig) -> tuple[Handover, Pose2D, Pose2D]:
-    """(the lost handover, the robot's odometry then, island 0's origin in odometry)."""
-    origin = Pose2D(1.0, 2.0, 0.3)
-    robot = Robot(origin)
+ORIGIN = Pose2D(1.0, 2.0, 0.3)
+"""Island 0's origin in odometry, where the robot stands when the builder hands it back."""
+
+
+def _handed_back_at_island_0(cfg: ExplorerConfig) -> tuple[Explorer, Robot]:
+    """An explorer whose map holds island 0 (one unexplored exit along theta 0, no model),
+    told that the builder has just handed the robot back there."""
     ex = Explorer(cfg)
     island = Island(0, LineModel(np.zeros((0, 4))), ModelType.LINE, 1.0, 0.0,
                     exits=(Exit(0, 0.0, 1.0),))
-    ex.on_events([BuilderEvent(EventKind.HANDED_BACK, 0.0, origin, 0.1, anchor_odom=origin,
+    ex.on_graph(TopoGraph.from_parts([island], []))
+    ex.on_events([BuilderEvent(EventKind.HANDED_BACK, 0.0, ORIGIN, 0.1, anchor_odom=ORIGIN,
                                accepted_island_id=0)])
+    return ex, Robot(ORIGIN)
+
+
+def _run_until_lost(cfg: ExplorerConfig) -> tuple[Handover, Pose2D, Pose2D]:
+    """(the lost handover, the robot's odometry then, island 0's origin in odometry)."""
+    ex, robot = _handed_back_at_island_0(cfg)
     script: list[tuple[float, float]] = []
     driven_m = 0.0
-    for k in range(40_000):
-        if k == 1:  # the map holds the island a period after the builder's event
-            ex.on_graph(TopoGraph.from_parts([island], []))
+    for _ in range(40_000):
         out = ex.step(robot.sense())
         for r in out.requests:
             if isinstance(r, Handover) and r.exit_index is None:
-                return r, robot.pose, origin
+                return r, robot.pose, ORIGIN
             if isinstance(r, Handover):
                 script = _follower_l()
         if out.drive:
@@ -135,14 +143,7 @@ def test_a_handover_in_the_step_of_a_hand_back_waits_for_the_builder() -> None:
     one step. The hand-back event of that step came before the handover and must not end the
     new trip at once (office 11 seed 2 at 7200 s: the exit was marked blocked, the explorer
     drove on by the map while the builder followed, and the next dock raised BuilderError)."""
-    origin = Pose2D(1.0, 2.0, 0.3)
-    robot = Robot(origin)
-    ex = Explorer(ExplorerConfig())
-    island = Island(0, LineModel(np.zeros((0, 4))), ModelType.LINE, 1.0, 0.0,
-                    exits=(Exit(0, 0.0, 1.0),))
-    ex.on_graph(TopoGraph.from_parts([island], []))
-    ex.on_events([BuilderEvent(EventKind.HANDED_BACK, 0.0, origin, 0.1, anchor_odom=origin,
-                               accepted_island_id=0)])
+    ex, robot = _handed_back_at_island_0(ExplorerConfig())
     out = ex.step(robot.sense())
     assert any(isinstance(r, Handover) and r.exit_index == 0 for r in out.requests)
     assert not any(isinstance(r, ExitUpdate) for r in out.requests)  # not blocked at once

@@ -154,8 +154,7 @@ class IslandBuilder(BuilderView):
     def _edge_strategy(self) -> ControlStrategy:
         """The strategy of the edge the robot is on: the way it drove (edge_path_tolerance_m
         > 0), or the follower's record."""
-        on = self.config.edge_path_tolerance_m > 0.0
-        return self._with_prefix(self._path.strategy()) if on else self._strategy
+        return self._with_prefix(self._path.strategy()) if self._path.on else self._strategy
 
     def on_scan(self, t_s: float, ranges_m: npt.ArrayLike, angles_rad: npt.ArrayLike) -> None:
         """A sonar scan: ranges from the robot centre [m] (inf = no echo) at robot-frame angles."""

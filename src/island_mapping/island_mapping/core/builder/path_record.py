@@ -67,9 +67,14 @@ class PathRecord:
         self._start = self._end = pose
         self._points = [] if pose is None else [(pose.x, pose.y)]
 
+    @property
+    def on(self) -> bool:
+        """Does the record keep the way (tolerance_m > 0)?"""
+        return self.tolerance_m > 0.0
+
     def add(self, pose: Pose2D) -> None:
-        """The robot drove to `pose` (odometry); nothing is kept with tolerance_m <= 0 (off)."""
-        if self.tolerance_m <= 0.0:
+        """The robot drove to `pose` (odometry); nothing is kept when off (`on`)."""
+        if not self.on:
             return
         if self._start is None:
             self.restart(pose)

@@ -549,7 +549,7 @@ class Explorer:
         that island's origin), or None with way_tolerance_m 0. The records it replaces (the
         explorer's own moves, the follower's primitives) miss the follower's turns while
         driving, and a lost robot's own record leaves out every stretch the follower drove."""
-        return None if self.cfg.way_tolerance_m <= 0.0 else self._way.strategy()
+        return self._way.strategy() if self._way.on else None
 
     def _mark_blocked(self, island_id: int, exit_index: int) -> None:
         self._blocked.add((island_id, exit_index))
