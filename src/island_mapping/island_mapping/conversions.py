@@ -9,7 +9,8 @@ explorer's requests (exploration by the map, issue 16).
 - **Explorer requests** (`island_builder/explorer`, rcl_interfaces/SetParameters): one
   parameter per request, applied in order, each a JSON string: `docked`
   `{"island": id, "origin_odom": {x, y, theta}}`, `handover` `{"island": id, "exit": index or
-  null, "prefix": "Go 150, Rot 90"}`, `abort` `{}`.
+  null, "prefix": "Go 150, Rot 90"}`, `abort` `{}`, `confirm` `{"island": id}` (the held
+  star was at that island), `reject` `{}` (it was at none of its hypotheses).
 - **Status** (`explorer/status`, std_msgs/String JSON): `ExplorerStatus.to_dict()`.
 
 Every malformed value raises `ExplorerMessageError` naming the field (an `InputError`).
@@ -26,9 +27,15 @@ from island_msgs_py.types import ControlStrategy, ExitUpdate, Island, IslandType
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from std_msgs.msg import String
 
-from island_mapping.core.builder import BuilderEvent, CommandMode, EventKind, event_to_dict
+from island_mapping.core.builder import (
+    BuilderEvent,
+    CommandMode,
+    EventKind,
+    Hypothesis,
+    event_to_dict,
+)
 from island_mapping.core.builder.hooks import GraphItem
-from island_mapping.core.explore import Abort, Docked, ExplorerStatus, Handover
+from island_mapping.core.explore import Abort, Confirm, Docked, ExplorerStatus, Handover, Reject
 from island_msgs_py import conversions as cv
 from island_msgs_py import json_checks as jc
 from island_msgs_py import json_io
@@ -36,13 +43,15 @@ from island_msgs_py import json_io
 DOCKED_PARAM = "docked"
 HANDOVER_PARAM = "handover"
 ABORT_PARAM = "abort"
-REQUEST_PARAMS = (DOCKED_PARAM, HANDOVER_PARAM, ABORT_PARAM)
+CONFIRM_PARAM = "confirm"
+REJECT_PARAM = "reject"
+REQUEST_PARAMS = (DOCKED_PARAM, HANDOVER_PARAM, ABORT_PARAM, CONFIRM_PARAM, REJECT_PARAM)
 MAX_REQUEST_CHARS = 65536
 """A request's JSON longer than this is refused (a strategy prefix is a few hundred) [chars]."""
 MAX_DECISION_CHARS = 8 * 1024 * 1024
 """A decision message longer than this is refused (it carries at most a few islands) [chars]."""
 
-ExplorerRequest = Docked | Handover | Abort
+ExplorerRequest = Docked | Handover | Abort | Confirm | Reject
 
 
 class ExplorerMessageError(InputError):
@@ -101,7 +110,8 @@ def event_from_dict(d: Any, path: str = "event") -> BuilderEvent:
     """A builder event from its JSON form (`event_to_dict`), checked field by field."""
     keys = {"kind", "t_s", "odom_pose", "epsilon_m", "measure", "bound", "legs_m", "partial",
             "anchor_odom", "island", "edge", "accepted_island_id", "reason",
-            "revisited_island_id", "island_pose", "residual_m", "exit_updates", "truth_pose"}
+            "revisited_island_id", "island_pose", "residual_m", "exit_updates", "truth_pose",
+            "hypotheses"}
     obj = jc.obj(d, path, keys, {"kind", "t_s", "odom_pose", "epsilon_m"})
     updates = obj.get("exit_updates") or []
     return BuilderEvent(
@@ -117,7 +127,17 @@ def event_from_dict(d: Any, path: str = "event") -> BuilderEvent:
         island_pose=_opt(obj, "island_pose", json_io.pose_from_dict, path),
         exit_updates=tuple(json_io.exit_update_from_dict(u, f"{path}.exit_updates[{k}]")
                            for k, u in enumerate(jc.list_(updates, f"{path}.exit_updates"))),
+        hypotheses=tuple(_hypothesis(h, f"{path}.hypotheses[{k}]") for k, h in enumerate(
+            jc.list_(obj.get("hypotheses") or [], f"{path}.hypotheses"))),
     )
+
+
+def _hypothesis(d: Any, path: str) -> Hypothesis:
+    obj = jc.obj(d, path, {"island", "pose", "inlier_fraction"},
+                 {"island", "pose", "inlier_fraction"})
+    return Hypothesis(jc.island_id(obj["island"], f"{path}.island"),
+                      json_io.pose_from_dict(obj["pose"], f"{path}.pose"),
+                      jc.float_(obj["inlier_fraction"], f"{path}.inlier_fraction"))
 
 
 # ----------------------------------------------------------------------------- map items
@@ -152,6 +172,10 @@ def request_to_parameter(request: ExplorerRequest) -> Parameter:
         return _string_param(HANDOVER_PARAM, {"island": request.island_id,
                                               "exit": request.exit_index,
                                               "prefix": str(request.prefix)})
+    if isinstance(request, Confirm):
+        return _string_param(CONFIRM_PARAM, {"island": request.island_id})
+    if isinstance(request, Reject):
+        return _string_param(REJECT_PARAM, {})
     return _string_param(ABORT_PARAM, {})
 
 
@@ -169,9 +193,12 @@ def parameter_to_request(param: Parameter, path: str = "parameter") -> ExplorerR
                                    f"{MAX_REQUEST_CHARS}")
     where = f"{path} ({param.name})"
     try:
-        if param.name == ABORT_PARAM:
+        if param.name in (ABORT_PARAM, REJECT_PARAM):
             jc.obj(jc.loads(text or "{}", where), where, set(), set())
-            return Abort()
+            return Abort() if param.name == ABORT_PARAM else Reject()
+        if param.name == CONFIRM_PARAM:
+            d = jc.obj(jc.loads(text, where), where, {"island"}, {"island"})
+            return Confirm(jc.island_id(d["island"], f"{where}.island"))
         if param.name == DOCKED_PARAM:
             d = jc.obj(jc.loads(text, where), where, {"island", "origin_odom"},
                        {"island", "origin_odom"})

@@ -33,10 +33,12 @@ from island_mapping.core.builder import (
 from island_mapping.core.builder.hooks import graph_items
 from island_mapping.core.explore import (
     Abort,
+    Confirm,
     Docked,
     Explorer,
     ExplorerConfig,
     Handover,
+    Reject,
     explorer_hooks,
 )
 from island_mapping.core.graph import TopoGraph
@@ -247,6 +249,10 @@ def _apply_requests(requests: tuple[object, ...], builder: IslandBuilder, graph:
             handed = True
         elif isinstance(r, Abort):
             builder.abort()
+        elif isinstance(r, Confirm):
+            builder.confirm(r.island_id)
+        elif isinstance(r, Reject):
+            builder.reject()
         elif isinstance(r, ExitUpdate):
             graph.apply_exit_update(r)
         elif isinstance(r, NewExit):

@@ -83,9 +83,11 @@ from island_mapping.core.builder.inputs import (
 )
 from island_mapping.core.explore import (
     Abort,
+    Confirm,
     Docked,
     ExplorerConfig,
     Handover,
+    Reject,
     explorer_hooks,
 )
 from island_mapping.core.graph import TopoGraph
@@ -280,6 +282,9 @@ class IslandBuilderNode(Node):
 
     def _apply_request(self, r: mcv.ExplorerRequest) -> str:
         """One request to the builder; BuilderError when it cannot take it (now)."""
+        if isinstance(r, Reject):
+            self.builder.reject()
+            return "held star rejected: its island is built"
         if not isinstance(r, Abort):
             known = {i.id: i for i in self.builder.islands}
             if r.island_id not in known:
@@ -291,6 +296,9 @@ class IslandBuilderNode(Node):
         if isinstance(r, Docked):
             self.builder.on_docked(r.island_id, r.origin_odom)
             return f"docked at island {r.island_id}"
+        if isinstance(r, Confirm):
+            self.builder.confirm(r.island_id)
+            return f"held star confirmed at island {r.island_id}"
         if isinstance(r, Abort):
             if not self.builder.abort():
                 raise core.BuilderError(f"abort: the builder is busy ({self.builder.state}); "

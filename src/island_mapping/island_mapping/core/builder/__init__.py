@@ -44,6 +44,7 @@ from island_mapping.core.builder.events import (
     CommandMode,
     DismissReason,
     EventKind,
+    Hypothesis,
     event_to_dict,
 )
 from island_mapping.core.builder.follow import follower_settled, follower_turning
@@ -74,6 +75,7 @@ __all__ = [
     "EvaluateFn",
     "EventKind",
     "FitFn",
+    "Hypothesis",
     "IslandBuilder",
     "IslandRun",
     "Measures",

@@ -32,6 +32,19 @@ class EventKind(StrEnum):
     ISLAND_REVISITED = "island_revisited"  # a known island recognised: no new island
     HANDED_OVER = "handed_over"  # managed mode: the explorer handed the robot over
     STOPPED = "stopped"  # managed mode: following stopped at the explorer's request
+    # managed mode: a star fitted more than one known island (or one, and a look-alike
+    # elsewhere); the builder holds its decision until the explorer confirms one or rejects all
+    REVISIT_HYPOTHESIS = "revisit_hypothesis"
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """A known island the robot may be at: island_id, the robot's pose in its frame [m, rad]
+    by the star's fit, and the fit's inlier fraction [-]."""
+
+    island_id: int
+    pose: Pose2D
+    inlier_fraction: float
 
 
 @dataclass(frozen=True)
@@ -45,6 +58,7 @@ class BuilderEvent:
     that island's frame when recognised [m, rad]), residual_m (RMS of the fit [m]) and, when it
     was added or made cheaper, the edge from the previous island. exit_updates: exits the
     event's edge explored (managed mode), to apply after the island and the edge.
+    revisit_hypothesis: `hypotheses`, the known islands the star fitted (best first).
     """
 
     kind: EventKind
@@ -64,6 +78,7 @@ class BuilderEvent:
     island_pose: Pose2D | None = None
     residual_m: float | None = None
     exit_updates: tuple[ExitUpdate, ...] = ()
+    hypotheses: tuple[Hypothesis, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -105,4 +120,7 @@ def event_to_dict(e: BuilderEvent) -> dict[str, object]:
         d["residual_m"] = e.residual_m
     if e.exit_updates:
         d["exit_updates"] = [json_io.exit_update_to_dict(u) for u in e.exit_updates]
+    if e.hypotheses:
+        d["hypotheses"] = [{"island": h.island_id, "pose": json_io.pose_to_dict(h.pose),
+                            "inlier_fraction": h.inlier_fraction} for h in e.hypotheses]
     return d

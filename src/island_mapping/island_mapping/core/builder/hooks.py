@@ -13,6 +13,8 @@
   arrived by (`target_exit`); both exits become explored by it (`exit_updates` of the event).
 - **Exits** (`BuilderHooks.find_exits`): called at acceptance with what the star saw, in the
   island frame; the exit facing where the robot came from is the arrival.
+- **Held decisions** (`BuilderHooks.hold_hypotheses`, `IslandBuilder.confirm` / `reject`): a
+  star that fits look-alike islands waits for the explorer's evidence (`core.builder.held`).
 - **Revisit gate** (`BuilderHooks.accept_revisit`): a recognition the Recognizer proposed is
   kept only if the gate agrees (loop closure with topological evidence): it answers why it
   refuses (a `Refusal`, counted) or None; the recognition it sees carries the direction the
@@ -83,6 +85,10 @@ class BuilderHooks:
     revisit: RevisitConfig | None = None  # the recognition the explorer wants (None: the builder's)
     opening: OpeningConfig | None = None  # side openings as places (None: the builder's)
     accept_on_legs: bool | None = None  # eq. 3 over the star's region (None: the builder's)
+    # A star fitting this many look-alike islands at most holds its decision for the
+    # explorer's evidence (`core.builder.held`; 0: decide on the spot), for at most hold_s [s].
+    hold_hypotheses: int = 0
+    hold_s: float = 3600.0
 
 
 def hooked_config(config: BuilderConfig | None, hooks: BuilderHooks) -> BuilderConfig:

@@ -12,8 +12,6 @@ and the events since the last call. docs/builder.md describes the decisions.
 
 from __future__ import annotations
 
-from enum import StrEnum
-
 import numpy as np
 import numpy.typing as npt
 from island_msgs_py.geometry import ranges_to_points
@@ -23,12 +21,11 @@ from island_msgs_py.types import (
     Island,
     LineModel,
     Pose2D,
-    PrimitiveKind,
 )
 
 from island_mapping.core.builder import motion, star
 from island_mapping.core.builder.checks import localizes_back
-from island_mapping.core.builder.config import BuilderConfig, BuilderError
+from island_mapping.core.builder.config import BuilderConfig
 from island_mapping.core.builder.diagnostics import Diagnostics, ProbeOutcome
 from island_mapping.core.builder.docking import Dock, dock_step
 from island_mapping.core.builder.epsilon import (
@@ -54,6 +51,7 @@ from island_mapping.core.builder.follow import (
     straight_behind_m,
 )
 from island_mapping.core.builder.geometry import concat, to_frame
+from island_mapping.core.builder.held import Held
 from island_mapping.core.builder.hooks import (
     APPROACH_M,
     BuilderHooks,
@@ -69,28 +67,17 @@ from island_mapping.core.builder.hooks import (
 )
 from island_mapping.core.builder.inputs import checked_cov, checked_scan
 from island_mapping.core.builder.ledger import Ledger
+from island_mapping.core.builder.managed import ManagedInputs
 from island_mapping.core.builder.motion import STOP, LookPhase, StallWatch, Twist
 from island_mapping.core.builder.opening import Openings
 from island_mapping.core.builder.path_record import PathRecord
-from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
+from island_mapping.core.builder.recognition import Recognition, Recognizer
 from island_mapping.core.builder.star import Attempt
-from island_mapping.core.builder.view import BuilderView
-
-
-class _State(StrEnum):
-    WAITING = "waiting"  # no odometry/scan yet
-    FOLLOWING = "following"
-    STAR = "star"
-    RETURNING = "returning"  # back to the origin, facing theta 0, then hand back
-    DOCKING = "docking"  # onto a recognised island's origin, then hand back
-    PROBING = "probing"  # to an origin past the star's legs: look around there, verify it
-    ENTERING = "entering"  # into a side opening the robot passed, to attempt inside it
-    LEAVING = "leaving"  # back out of it to where the follower stopped (attempt dismissed)
-    IDLE = "idle"  # managed mode: at an island, the explorer drives (core.builder.hooks)
+from island_mapping.core.builder.state import State
 
 
 # size-ok: one method per state and transition; the decisions are already functions
-class IslandBuilder(BuilderView):
+class IslandBuilder(ManagedInputs):
     """The island builder state machine (see the module docstring).
 
     Call `on_odometry` for every odometry message, `on_scan` for every scan, `set_strategy`
@@ -108,7 +95,7 @@ class IslandBuilder(BuilderView):
         self.measures = Measures.of(self.config, fit, evaluate)
         self.diagnostics = Diagnostics()
         self.recognizer = Recognizer(self.config, self.diagnostics)
-        self._state = _State.WAITING
+        self._state = State.WAITING
         self._track = OdometryTrack()
         self._truth: Pose2D | None = None
         self._last_scan: tuple[FloatArray, FloatArray] | None = None
@@ -122,6 +109,7 @@ class IslandBuilder(BuilderView):
         self._path = PathRecord(self.config.edge_path_tolerance_m)  # the follower's way
         self._attempt: Attempt | None = None
         self._dock: Dock | None = None
+        self._held: Held | None = None
         self._events: list[BuilderEvent] = []
         self._t = 0.0
         self.ledger = Ledger(self.recognizer)
@@ -132,7 +120,7 @@ class IslandBuilder(BuilderView):
         """Latest odometry pose and its 3x3 covariance (x, y, theta) [m, rad]."""
         cov = checked_cov(t_s, cov3x3)
         moved = self._track.update(odom_pose, cov)
-        if self._state is _State.FOLLOWING:
+        if self._state is State.FOLLOWING:
             self._path_m += moved
             self._path.add(odom_pose)
         self._t = max(self._t, t_s)
@@ -166,90 +154,21 @@ class IslandBuilder(BuilderView):
         pts = ranges_to_points(r, a, self._odom)
         near = r <= self.config.revisit.max_range_m  # far sonar echoes are wide cones
         near_pts = ranges_to_points(r[near], a[near], self._odom)  # for recognising known islands
-        if self._state is _State.STAR and self._attempt is not None:
+        if self._state is State.STAR and self._attempt is not None:
             self._attempt.add_scan(pts, near_pts, self._odom, self.config.centre_radius_m, (r, a))
         look = self._look()
         if look is not None:
             if look.phase is LookPhase.LOOK:
                 look.points.append(pts)
             return
-        if self._state is _State.IDLE:
+        if self._state is State.IDLE:
             return
-        if self._state is _State.FOLLOWING and self.config.opening.enabled:
+        if self._state is State.FOLLOWING and self.config.opening.enabled:
             self._openings.observe(r, a, self._path_m, self._odom.theta)
-        self._history.add(self._path_m, pts, near_pts, self._state is _State.FOLLOWING,
+        self._history.add(self._path_m, pts, near_pts, self._state is State.FOLLOWING,
                           self.config)
 
-    # ----- managed mode: the explorer's inputs (core.builder.hooks) -----
-
-    def on_docked(self, island_id: int, origin_odom: Pose2D) -> None:
-        """The robot is docked at island island_id's origin, which lies at origin_odom in the
-        odometry frame: it is the last island, and epsilon restarts there. Only while IDLE."""
-        island = self._managed_island("on_docked", island_id)
-        self.recognizer.remember(island.id, origin_odom, self._track.cov.copy())
-        self._track.rel.reset()
-        self.ledger.handed_back(island, self._path_m)
-        self._strategy = ControlStrategy(())
-
-    def handover(self, island_id: int, exit_index: int | None, prefix: ControlStrategy) -> None:
-        """Leave island island_id (the last docked) by exit exit_index (None: by no known exit)
-        after driving `prefix` from its origin: the follower drives, the builder decides."""
-        island = self._managed_island("handover", island_id)
-        if self.ledger.last_island is None or self.ledger.last_island.id != island.id:
-            raise BuilderError(f"handover: the robot is not docked at island {island_id}")
-        if exit_index is not None and all(e.index != exit_index for e in island.exits):
-            raise BuilderError(f"handover: island {island_id} has no exit {exit_index} (its "
-                               f"exits: {[e.index for e in island.exits]})")
-        self._departure = Departure(island.id, exit_index, prefix)
-        self._openings.reset()  # openings count from a hallway driven after the handover
-        self._strategy = prefix
-        self._path.restart(self._odom)
-        self._path_m += sum(s.metres for s in prefix.steps if s.kind is PrimitiveKind.GO)
-        self._gate.retry_at_path_m = self._path_m
-        self._history.quick.clear()
-        self._history.revisit.clear()
-        self._state = _State.FOLLOWING
-        self._emit(EventKind.HANDED_OVER, anchor_odom=self._odom)
-
-    def abort(self) -> bool:
-        """Take the robot back for the explorer (managed mode): from FOLLOWING to IDLE (event
-        STOPPED). False while the builder is busy (a star, a dock): ask again later."""
-        if not self.hooks.managed or self._state not in (_State.FOLLOWING, _State.IDLE):
-            return False
-        if self._state is _State.FOLLOWING:
-            self._emit(EventKind.STOPPED)
-        self._state = _State.IDLE
-        self._departure = None
-        return True
-
-    def _managed_island(self, what: str, island_id: int) -> Island:
-        if not self.hooks.managed:
-            raise BuilderError(f"{what}: the builder is not in managed mode")
-        if self._state is not _State.IDLE or self._odom is None:
-            raise BuilderError(f"{what}: only while idle (the builder is {self._state.value})")
-        found = [i for i in self.ledger.islands if i.id == island_id]
-        if not found:
-            raise BuilderError(f"{what}: unknown island {island_id} (the builder has "
-                               f"{len(self.ledger.islands)})")
-        return found[0]
-
-    # ----- queries (more in core.builder.view) -----
-
-    @property
-    def _odom(self) -> Pose2D | None:
-        return self._track.pose
-
-    @property
-    def state(self) -> str:
-        return self._state.value
-
-    def snapshot(self) -> PoseSnapshot:
-        """The robot's pose, covariance and error since the last island, for recognition."""
-        track, last = self._track, self.ledger.last_island
-        assert track.pose is not None
-        return PoseSnapshot(track.pose, track.cov, self.epsilon_m, track.rel.heading_sigma_rad,
-                            None if last is None else last.id,
-                            self._path_m - self.ledger.start_path_m)
+    # ----- queries (more in core.builder.view and .managed) -----
 
     def recognize(self) -> Recognition | None:
         """Search the known islands near the odometric pose for the recent scan points (the
@@ -266,7 +185,7 @@ class IslandBuilder(BuilderView):
         """What to do now (call once per scan) and the events since the last call."""
         self._t = max(self._t, t_s)
         v, w = STOP
-        if self._state is _State.WAITING and self._odom is not None and (
+        if self._state is State.WAITING and self._odom is not None and (
             self._last_scan is not None
         ):
             if self.config.build_first_island:
@@ -274,28 +193,31 @@ class IslandBuilder(BuilderView):
             else:
                 self._track.rel.reset()
                 self._path.restart(self._odom)
-                self._state = _State.FOLLOWING
-        if self._state is _State.FOLLOWING:
+                self._state = State.FOLLOWING
+        if self._state is State.FOLLOWING:
             self._maybe_attempt()
         if self._odom is not None and self._stall.update(self._t, self._odom, self._state in (
-            _State.ENTERING, _State.LEAVING, _State.RETURNING, _State.DOCKING, _State.STAR
+            State.ENTERING, State.LEAVING, State.RETURNING, State.DOCKING, State.STAR
         )):  # pushing at a wall: the drive ends where the robot is
             self.diagnostics.drive_stalls += 1
             self._gave_up = True
-        if self._state is _State.ENTERING:
+        if self._state is State.ENTERING:
             v, w = self._entry_step()
-        if self._state is _State.LEAVING:
+        if self._state is State.LEAVING:
             v, w = self._leave_step()
-        if self._state is _State.STAR:
+        if self._state is State.STAR:
             v, w = self._star_step()
-        if self._state is _State.PROBING:
+        if self._state is State.PROBING:
             v, w = self._probe_step()
-        if self._state is _State.RETURNING:
+        if self._state is State.RETURNING:
             v, w = self._return_step()
-        if self._state is _State.DOCKING:
+        if self._state is State.DOCKING:
             v, w = self._dock_step()
-        mode = (CommandMode.FOLLOW if self._state is _State.FOLLOWING else
-                CommandMode.IDLE if self._state is _State.IDLE else CommandMode.DRIVE)
+        if self._held is not None and self._t - self._held.t_s > self.hooks.hold_s:
+            self.reject()  # nobody answered: decide as without the hypotheses
+        mode = (CommandMode.FOLLOW if self._state is State.FOLLOWING else
+                CommandMode.IDLE if self._state in (State.IDLE, State.HELD) else
+                CommandMode.DRIVE)
         events, self._events = tuple(self._events), []
         return BuilderCommand(mode, v, w, events)
 
@@ -324,7 +246,7 @@ class IslandBuilder(BuilderView):
                        bound=eq3_bound(cfg, now.epsilon_m))
         elif step is FollowStep.ATTEMPT:
             if self._openings.enter(odom, self._path_m):  # back to its middle, then in
-                self._state = _State.ENTERING
+                self._state = State.ENTERING
             else:
                 self._start_attempt(first=False)
 
@@ -337,7 +259,7 @@ class IslandBuilder(BuilderView):
             straight_behind_m(self._strategy),
             to_frame(ranges_to_points(*self._last_scan, self._odom), self._odom), self._last_scan)
         self._track.anchor_star()
-        self._state = _State.STAR
+        self._state = State.STAR
         self._emit(EventKind.ATTEMPT_STARTED, anchor_odom=self._odom, bound=bound)
 
     def _take_give_up(self) -> bool:
@@ -410,6 +332,14 @@ class IslandBuilder(BuilderView):
                 self._attempt, self._track.star = None, None
                 self._revisit(rec, legs_m=tuple(att.legs_done), strategy_end=end)
                 return
+            if self._hold(att):
+                return
+        self._build()
+
+    def _build(self) -> None:
+        """The attempt's island (no known island recognised): its origin, checked."""
+        att, cfg = self._attempt, self.config
+        assert att is not None
         pts = concat(att.points)
         model = self.measures.fit(pts) if pts.shape[0] >= 2 else LineModel()
         origin = star.choose_origin(self.measures, model, att, self._pose_in_anchor())
@@ -420,7 +350,7 @@ class IslandBuilder(BuilderView):
             return
         if isinstance(origin, star.Probe):  # past the driven legs: check it on the spot
             att.probe = origin
-            self._state = _State.PROBING
+            self._state = State.PROBING
             return
         self._accept_at(model, *origin)
 
@@ -457,7 +387,7 @@ class IslandBuilder(BuilderView):
         self._emit(EventKind.ISLAND_ACCEPTED, epsilon_m=att.epsilon_m, anchor_odom=origin,
                    measure=att.best, bound=att.bound, legs_m=tuple(att.legs_done),
                    island=island, edge=edge, exit_updates=updates)
-        self._state = _State.RETURNING
+        self._state = State.RETURNING
 
     def _probe_step(self) -> Twist:
         """To the origin past the legs and look around there (`star.probe_step`); then accept
@@ -482,7 +412,7 @@ class IslandBuilder(BuilderView):
         self._emit(EventKind.ATTEMPT_DISMISSED, epsilon_m=att.epsilon_m, anchor_odom=att.anchor,
                    measure=att.best, bound=att.bound, legs_m=tuple(att.legs_done), partial=partial,
                    reason=reason if reason is not None else DismissReason.MEASURE)
-        self._state = _State.RETURNING
+        self._state = State.RETURNING
 
     def _return_step(self) -> Twist:
         att = self._attempt
@@ -496,7 +426,7 @@ class IslandBuilder(BuilderView):
         self._track.star = None
         if not accepted and self._openings.entry is not None:  # back out where the follower was
             self._openings.entry.leave()
-            self._state = _State.LEAVING
+            self._state = State.LEAVING
             return STOP
         self._hand_back(att.anchor, self.ledger.last_island if accepted else None)
         return STOP
@@ -515,7 +445,7 @@ class IslandBuilder(BuilderView):
         self._history.quick.clear()
         self._openings.reset()
         managed_stop = self.hooks.managed and island is not None
-        self._state = _State.IDLE if managed_stop else _State.FOLLOWING
+        self._state = State.IDLE if managed_stop else State.FOLLOWING
 
     # ----- revisits -----
 
@@ -547,14 +477,26 @@ class IslandBuilder(BuilderView):
         robot now); the edge's last steps drive from there to the origin. After a star the
         robot is back at the anchor but faces its last leg, so that must be the anchor pose.
         """
+        origin_odom = self._link_revisit(rec, legs_m, strategy_end, self.epsilon_m,
+                                         self._track.rel.heading_sigma_rad)
+        self._dock = Dock(island=self.ledger.island(rec.island_id), target=origin_odom,
+                          looks_left=self.config.revisit.dock_looks)
+        self._state = State.DOCKING
+
+    def _link_revisit(self, rec: Recognition, legs_m: tuple[tuple[float, float], ...],
+                      strategy_end: Pose2D | None, epsilon_m: float, heading_sigma_rad: float
+                      ) -> Pose2D:
+        """The edge and link from the previous island to the recognised one (its weight and
+        sigmas from epsilon_m [m] and heading_sigma_rad [rad]), and the event; the island's
+        origin in the odometry frame."""
         assert self._odom is not None
         island = self.ledger.island(rec.island_id)
         origin_odom = self._odom.compose(rec.pose.inverse())  # the island origin, odometry
         prev = self.ledger.last_island
         edge = self.ledger.revisit(
             island.id, self._edge_strategy(), self._path_m,
-            rec.pose if strategy_end is None else strategy_end, self.epsilon_m,
-            self.config.revisit.strategy_min_go_m, origin_odom, self._track.rel.heading_sigma_rad)
+            rec.pose if strategy_end is None else strategy_end, epsilon_m,
+            self.config.revisit.strategy_min_go_m, origin_odom, heading_sigma_rad)
         came = arrival_heading(approach_path(self._strategy, APPROACH_M),
                                rec.pose if strategy_end is None else strategy_end)
         arrival = None if came is None else facing_exit(island, came, self.hooks.arrival_match_deg)
@@ -569,9 +511,7 @@ class IslandBuilder(BuilderView):
                    exit_updates=exit_updates(
                        known, None if known is None else (known.source, known.target),
                        self._departure, index))
-        self._dock = Dock(island=island, target=origin_odom,
-                          looks_left=self.config.revisit.dock_looks)
-        self._state = _State.DOCKING
+        return origin_odom
 
     def _dock_step(self) -> Twist:
         """Drive onto the recognised origin, face its heading, look around and re-localize;
@@ -591,9 +531,9 @@ class IslandBuilder(BuilderView):
 
     def _look(self) -> motion.Look | None:
         """The dock or probe under way, if the state is one of theirs."""
-        if self._state is _State.DOCKING:
+        if self._state is State.DOCKING:
             return self._dock
-        if self._state is _State.PROBING and self._attempt is not None:
+        if self._state is State.PROBING and self._attempt is not None:
             return self._attempt.probe
         return None
 

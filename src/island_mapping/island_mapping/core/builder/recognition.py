@@ -29,6 +29,7 @@ from island_mapping.core.builder.geometry import drive_clear, from_frame, to_fra
 from island_mapping.core.builder.inlier_field import InlierField
 from island_mapping.core.builder.links import Link, LinkGraph
 from island_mapping.core.builder.places import PlaceSearch
+from island_mapping.core.builder.recognized import PoseSnapshot, Recognition
 from island_mapping.core.builder.revisit_config import RevisitConfig
 from island_mapping.core.builder.uncertainty import (
     between_covariance,
@@ -53,41 +54,6 @@ _ALIAS_STEPS = 2
 
 def _ignore(_reason: Refusal) -> None:
     """A refusal that is not counted."""
-
-
-@dataclass(frozen=True)
-class Recognition:
-    """A known island found in the scan points: the robot's pose in its frame."""
-
-    island_id: int
-    pose: Pose2D  # the robot in the island frame [m, rad]
-    residual_m: float
-    inlier_fraction: float
-    # How far the recognised pose lies from the odometric estimates, in their sigmas: the
-    # largest squared Mahalanobis distance over (x, y, theta) under each estimate's full
-    # covariance (`Recognizer.spreads`) [-]; None when not computed.
-    mahalanobis2: float | None = None
-    # The direction the robot came from, in the island frame (set by the builder before its
-    # revisit gate; None: unknown) [rad].
-    arrival_rad: float | None = None
-
-
-@dataclass(frozen=True)
-class PoseSnapshot:
-    """The robot's state a recognition reasons from.
-
-    odom: odometric pose [m, rad]; odom_cov: the odometry's 3x3 covariance (the drift since
-    an island's origin was last known grows from it); epsilon_m and heading_sigma_rad: the
-    error since the last island's origin (eq. 3); last_island_id: the island left last (None:
-    none yet); path_since_island_m: odometric path followed since leaving it [m].
-    """
-
-    odom: Pose2D
-    odom_cov: FloatArray
-    epsilon_m: float
-    heading_sigma_rad: float
-    last_island_id: int | None
-    path_since_island_m: float
 
 
 @dataclass(frozen=True)
@@ -143,21 +109,22 @@ Refine = Callable[[Island, FloatArray, Pose2D, _Window, Callable[[Refusal], None
 
 
 def fits_elsewhere(refine: Refine, rc: RevisitConfig, islands: Sequence[Island],
-                   pts: FloatArray, best: Recognition, star: bool) -> bool:
-    """Does an island other than best's fit `pts` as well (inliers within
+                   pts: FloatArray, best: Recognition, star: bool) -> Recognition | None:
+    """The fit of an island other than best's that fits `pts` as well (inliers within
     ambiguity_inlier_margin of best's) at a pose within max_dock_m of its own origin, at any
-    heading? Where odometry no longer bounds where the robot is (a window cut to the caps),
-    only the map's other places can tell a look-alike."""
+    heading, or None. Where odometry no longer bounds where the robot is (a window cut to the
+    caps), only the map's other places can tell a look-alike."""
     win = _Window(rc.max_dock_m, math.pi, rc.rival_step_m,
                   rc.star_max_residual_m if star else rc.max_residual_m)
     floor = best.inlier_fraction - rc.ambiguity_inlier_margin
     for island in islands:
         if island.id == best.island_id or len(island.model) == 0:
             continue
-        fits = refine(island, pts, Pose2D(0.0, 0.0, 0.0), win, _ignore)
-        if any(f.inlier_fraction >= floor for f in fits):
-            return True
-    return False
+        fits = [f for f in refine(island, pts, Pose2D(0.0, 0.0, 0.0), win, _ignore)
+                if f.inlier_fraction >= floor]
+        if fits:
+            return max(fits, key=lambda f: f.inlier_fraction)
+    return None
 
 
 def with_distance(rc: RevisitConfig, fit: Recognition, at: Pose2D,
@@ -171,6 +138,18 @@ def with_distance(rc: RevisitConfig, fit: Recognition, at: Pose2D,
     d2 = max((mahalanobis2(fit.pose, at.relative_to(origin), cov, floor)
               for origin, cov in spreads), default=None)
     return dataclasses.replace(fit, mahalanobis2=d2)
+
+
+def look_alikes(rc: RevisitConfig, best: Recognition, rivals: Sequence[Recognition],
+                spreads: Callable[[int], Sequence[tuple[Pose2D, FloatArray]]], at: Pose2D
+                ) -> list[Recognition]:
+    """The hypotheses of a recognition refused for look-alikes: best and the rivals (each with
+    its distance from its estimates, `with_distance`, the robot at odometric pose `at`), when
+    best has the inliers a recognition needs (accept_inlier_fraction); else none."""
+    if best.inlier_fraction < rc.accept_inlier_fraction:
+        return []
+    return [best, *(f if f.mahalanobis2 is not None else with_distance(
+        rc, f, at, spreads(f.island_id)) for f in rivals)]
 
 
 def rival_window(rc: RevisitConfig, cand: _Candidate, max_dth_rad: float, star: bool) -> _Window:
@@ -197,6 +176,7 @@ class Recognizer:
         # the inlier tests of the islands searched last (most recent last; bounded memory)
         self._fields: OrderedDict[int, InlierField] = OrderedDict()
         self.links = LinkGraph()
+        self.hypotheses: list[Recognition] = []  # the last look-alike refusal's fits, best first
 
     # ----- what is known -----
 
@@ -285,10 +265,11 @@ class Recognizer:
             return None
         pts = thin_evenly(pts, rc.star_max_points)
         rec = self.recognize(pts, anchor, snap, islands, star=True)
-        if rec is None:
-            return None
         # The distance from the estimate was measured at the anchor, where the points are.
-        return dataclasses.replace(rec, pose=rec.pose.compose(odom.relative_to(anchor)))
+        step = odom.relative_to(anchor)
+        self.hypotheses = [dataclasses.replace(h, pose=h.pose.compose(step))
+                           for h in self.hypotheses]
+        return None if rec is None else dataclasses.replace(rec, pose=rec.pose.compose(step))
 
     def recognize(
         self, points: FloatArray, at: Pose2D, snap: PoseSnapshot, islands: Sequence[Island],
@@ -310,6 +291,7 @@ class Recognizer:
         over star_search_sigmas within the star_ caps, a grid of at least radius /
         star_search_cells, residual up to star_max_residual_m."""
         rc = self.config.revisit
+        self.hypotheses = []
         found: list[Recognition] = []
         candidates = list(self._candidates(snap, islands))
         for cand in candidates:
@@ -330,8 +312,11 @@ class Recognizer:
         best = min(found, key=lambda f: f.residual_m)
         rivals = [f for f in found if f.island_id != best.island_id
                   and f.inlier_fraction >= best.inlier_fraction - rc.ambiguity_inlier_margin]
-        if (rc.unique_island and rivals) or self._rival_fits(candidates, points, at,
-                                                               best.island_id, star):
+        if not (rc.unique_island and rivals):
+            rival = self._rival_fits(candidates, points, at, best.island_id, star)
+            rivals = [] if rival is None else [rival]
+        if rivals:
+            self.hypotheses = look_alikes(rc, best, rivals, lambda i: self.spreads(i, snap), at)
             self.diagnostics.refuse(Refusal.LOOK_ALIKE)
             return None
         if best.inlier_fraction < rc.accept_inlier_fraction:  # rivals counted from min_...
@@ -341,12 +326,13 @@ class Recognizer:
         if self._turned_alias(chosen, best, points, star):
             self.diagnostics.refuse(Refusal.TURNED_ALIAS)
             return None
-        if rc.clipped_rivals and exceeds_caps(rc, chosen, star) and fits_elsewhere(
-                self._refine, rc, [i for i in islands if i.id in self._known], points, best,
-                star):
+        far = None if not (rc.clipped_rivals and exceeds_caps(rc, chosen, star)) else (
+            fits_elsewhere(self._refine, rc, [i for i in islands if i.id in self._known],
+                           points, best, star))
+        if far is not None:
+            self.hypotheses = look_alikes(rc, best, [far], lambda i: self.spreads(i, snap), at)
             self.diagnostics.refuse(Refusal.FAR_LOOK_ALIKE)
-            return None
-        return best
+        return best if far is None else None
 
     def estimates(self, island_id: int, snap: PoseSnapshot) -> list[tuple[Pose2D, float, float]]:
         """Where island island_id's origin may be in the odometry frame: (pose, position sigma
@@ -419,14 +405,14 @@ class Recognizer:
 
     def _rival_fits(
         self, candidates: list[_Candidate], pts: FloatArray, at: Pose2D, chosen: int, star: bool,
-    ) -> bool:
-        """Does another known island that may be here (rival_sigmas) fit the points too? Its
-        wide search finds an island whose odometric estimate drifted out of the narrow window
-        the recognition searched."""
+    ) -> Recognition | None:
+        """The fit of another known island that may be here (rival_sigmas) and fits the points
+        too, or None. Its wide search finds an island whose odometric estimate drifted out of
+        the narrow window the recognition searched."""
         rc = self.config.revisit
         k = rc.rival_sigmas
         if k <= 0:
-            return False
+            return None
         for cand in candidates:
             est = at.relative_to(cand.origin)
             if cand.island.id == chosen or math.hypot(est.x, est.y) > (
@@ -436,9 +422,10 @@ class Recognizer:
             dth = min(k * cand.sigma_rad, math.radians(rc.star_search_max_deg))
             win = rival_window(rc, cand, dth, star)
             # A rival's failed fits are not refusals of this recognition.
-            if self._search(cand.island, pts, est, win, count_refusals=False) is not None:
-                return True
-        return False
+            fit = self._search(cand.island, pts, est, win, count_refusals=False)
+            if fit is not None:
+                return fit
+        return None
 
     def _turned_alias(self, cand: _Candidate, best: Recognition, pts: FloatArray,
                       star: bool) -> bool:
@@ -576,3 +563,7 @@ class Recognizer:
                 continue
             fits.append(Recognition(island.id, p, float(res.residual_m), inl))
         return fits
+
+
+__all__ = ["PoseSnapshot", "Recognition", "Recognizer", "exceeds_caps", "fits_elsewhere",
+           "look_alikes", "rival_window", "search_window", "with_distance"]

@@ -10,8 +10,10 @@ Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public
 - `plan_departure`, `DeparturePlan`, `choose_lane`, `drive_departure`, `go_clear` (departure
   through an exit's gate or doorway; a drive that stops short of a wall ahead);
 - `relocalize` (a second look at the island left when the way back did not localize);
-- `Explorer`, `ExplorerCommand`, `ExplorerState`, `ExplorerStatus`, `Docked`, `Handover`,
-  `Abort` (mission: one step per scan);
+- `Explorer` (mission: one step per scan); `ExplorerCommand`, `ExplorerState`,
+  `ExplorerStatus`, `Docked`, `Handover`, `Abort`, `Confirm`, `Reject` (requests: what it says
+  and asks);
+- `rehearse` (more evidence for a held star: a known island's edge driven to its neighbour);
 - `explorer_hooks`, `arrival_agrees`, `loop_closure_gate`, `loop_closure_hooks` (the builder
   hooks an explorer installs; the loop closure's gate and topological evidence; the loop
   closure alone, as a recording's passive mode installs it).
@@ -43,15 +45,7 @@ from island_mapping.core.explore.hooks import (
     loop_closure_gate,
     loop_closure_hooks,
 )
-from island_mapping.core.explore.mission import (
-    Abort,
-    Docked,
-    Explorer,
-    ExplorerCommand,
-    ExplorerState,
-    ExplorerStatus,
-    Handover,
-)
+from island_mapping.core.explore.mission import Explorer
 from island_mapping.core.explore.novelty import known_space_costs
 from island_mapping.core.explore.planner import (
     Target,
@@ -60,9 +54,20 @@ from island_mapping.core.explore.planner import (
     unexplored_count,
 )
 from island_mapping.core.explore.relocalize import relocalize
+from island_mapping.core.explore.requests import (
+    Abort,
+    Confirm,
+    Docked,
+    ExplorerCommand,
+    ExplorerState,
+    ExplorerStatus,
+    Handover,
+    Reject,
+)
 
 __all__ = [
     "Abort",
+    "Confirm",
     "DeparturePlan",
     "Docked",
     "ExitConfig",
@@ -75,6 +80,7 @@ __all__ = [
     "ExplorerStatus",
     "Handover",
     "NoveltyConfig",
+    "Reject",
     "Target",
     "arrival_agrees",
     "arrival_exit",

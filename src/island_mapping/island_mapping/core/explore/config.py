@@ -302,6 +302,26 @@ class ExplorerConfig:
                           "propagated from the last island puts it (11.34: 99 % of 3 degrees "
                           "of freedom) [-]"},
     )
+    rehearse_hypotheses: int = field(
+        default=2,
+        metadata={"help": "a star that fits a known island and a look-alike is not decided on "
+                          "the spot: up to this many of the islands it fits (best fit first, "
+                          "each within the loop-closure gate) are tested by driving the "
+                          "island's shortest edge and localizing at its neighbour; the first "
+                          "that localizes there is docked onto, else a new island is built "
+                          "(0: build at once) [-]"},
+    )
+    rehearse_max_shift_m: float = field(
+        default=1.0,
+        metadata={"help": "a rehearsal's look at the neighbour confirms only within this of "
+                          "its origin (no search along the hallway) [m]"},
+    )
+    rehearse_through: float = field(
+        default=0.25,
+        metadata={"help": "and only when at most this fraction of the beams the neighbour's "
+                          "model says must echo (a wall within 3 m, met near head-on) heard "
+                          "through it in a look there [-]"},
+    )
     side_exits: bool = field(
         default=True,
         metadata={"help": "a side opening the robot passes while the hall follower drives an "
@@ -386,17 +406,17 @@ class ExplorerConfig:
         _check_numbers(self, ("exit_cap_s", "open_space_cap_s", "stuck_s", "stuck_m",
                               "return_max_shift_m", "door_max_width_m", "return_loop_m",
                               "door_through_m", "map_wait_s", "look_buffer_s", "revisit_near_m",
-                              "revisit_max_mahalanobis2"),
+                              "revisit_max_mahalanobis2", "rehearse_max_shift_m"),
                        ("depart_min_free_m", "lane_snap_m", "return_shortcut_m",
                         "relocalize_max_shift_m", "relocalize_max_turn_deg",
-                        "relocalize_max_residual_m", "way_tolerance_m"))
+                        "relocalize_max_residual_m", "way_tolerance_m", "rehearse_through"))
         _check_numbers(self, ("side_min_width_m", "side_near_island_m", "side_merge_m",
                               "side_merge_deg", "side_chain_m", "side_search_m"),
                        ("side_max_turn_deg", "side_direct_m", "failed_edge_penalty_m"))
-        if isinstance(self.retries_per_exit, bool) or not isinstance(self.retries_per_exit, int) \
-                or self.retries_per_exit < 0:
-            raise ExploreError("ExplorerConfig.retries_per_exit: expected an int >= 0, got "
-                               f"{self.retries_per_exit!r}")
+        for name in ("retries_per_exit", "rehearse_hypotheses"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise ExploreError(f"ExplorerConfig.{name}: expected an int >= 0, got {v!r}")
 
 
 def help_of(cls: type, name: str) -> str:

@@ -99,7 +99,8 @@ def explorer_hooks(cfg: ExplorerConfig, graph: Callable[[], TopoGraph]) -> Build
     return BuilderHooks(managed=True, find_exits=exits,
                         accept_revisit=loop_closure_gate(cfg, graph),
                         arrival_match_deg=cfg.exit.arrival_match_deg, revisit=cfg.revisit,
-                        opening=cfg.opening, accept_on_legs=cfg.accept_on_legs)
+                        opening=cfg.opening, accept_on_legs=cfg.accept_on_legs,
+                        hold_hypotheses=cfg.rehearse_hypotheses)
 
 
 def loop_closure_hooks(cfg: ExplorerConfig) -> BuilderHooks:

@@ -13,6 +13,11 @@ One `step(sense)` per scan returns who answers that scan (the explorer with (v, 
 builder side: the builder's star or the hall follower) and the requests for the builder and
 the map (`Docked`, `Handover`, `Abort`, blocked exits as `ExitUpdate`, side exits as `NewExit`).
 
+Held decisions (`trips`, `rehearse`): a star that fits a known island and a look-alike is held
+by the builder; the explorer rehearses each hypothesis (drives the island's shortest edge from
+its origin and looks for the neighbour) and confirms the first it finds (a loop closed) or
+rejects them all (the builder builds its island, and a look there docks the robot).
+
 Side exits (`openings`): while the builder side drives, openings beside the way become exits
 of the island left, with the way there as a prefix; such an exit is reached by the map, then
 its prefix (the opening sought by perception near its end), a quarter turn into it and a
@@ -23,8 +28,6 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable, Generator, Iterable
-from dataclasses import dataclass
-from enum import StrEnum
 
 import numpy as np
 from island_msgs_py.geometry import to_frame
@@ -37,7 +40,6 @@ from island_msgs_py.types import (
     ExitUpdate,
     FloatArray,
     Island,
-    NewExit,
     Pose2D,
 )
 
@@ -48,9 +50,7 @@ from island_mapping.core.explore.departure import STOP, drive_departure, go_clea
 from island_mapping.core.explore.novelty import known_space_costs
 from island_mapping.core.explore.openings import (
     OpeningWatch,
-    noted_side_exits,
     side_departure,
-    side_trip_end,
 )
 from island_mapping.core.explore.planner import (
     Target,
@@ -60,6 +60,16 @@ from island_mapping.core.explore.planner import (
 )
 from island_mapping.core.explore.record import MotionRecord
 from island_mapping.core.explore.relocalize import relocalize
+from island_mapping.core.explore.requests import (
+    Abort,
+    Docked,
+    ExplorerCommand,
+    ExplorerState,
+    ExplorerStatus,
+    Handover,
+    Request,
+)
+from island_mapping.core.explore.trips import Here, TripEnds
 from island_mapping.core.explore.watch import Deferred, StuckWatch
 from island_mapping.core.graph import (
     TopoGraph,
@@ -83,79 +93,7 @@ Step = Command | None
 builder side (the builder's own driving or the hall follower) answers."""
 
 
-class ExplorerState(StrEnum):
-    WAITING = "waiting"  # for the builder's first island
-    CHOOSING = "choosing"  # at an island: the next exit (waits for the map to hold the island)
-    NAVIGATING = "navigating"  # by the map to the island of the chosen exit
-    DEPARTING = "departing"  # turning to the exit, through its gate
-    HANDED_OVER = "handed_over"  # the builder and the hall follower drive
-    RETURNING = "returning"  # back to the island left (the exit took too long)
-    LOST = "lost"  # an arrival did not localize: the builder takes over from the last island
-    DONE = "done"
-
-
-@dataclass(frozen=True)
-class Docked:
-    """Tell the builder: the robot is docked at island_id's origin, at origin_odom."""
-
-    island_id: int
-    origin_odom: Pose2D
-
-
-@dataclass(frozen=True)
-class Handover:
-    """Tell the builder: explore from island_id by exit exit_index, having driven prefix."""
-
-    island_id: int
-    exit_index: int | None
-    prefix: ControlStrategy
-
-
-@dataclass(frozen=True)
-class Abort:
-    """Ask the builder to stop following (the explorer takes the robot back)."""
-
-
-Request = Docked | Handover | Abort | ExitUpdate | NewExit
-
-
-@dataclass(frozen=True)
-class ExplorerCommand:
-    """Who answers this scan: the explorer (drive=True, with v [m/s], w [rad/s]) or the builder
-    side; and the requests for the builder and the map made during this step."""
-
-    drive: bool
-    v_mps: float = 0.0
-    w_radps: float = 0.0
-    requests: tuple[Request, ...] = ()
-
-
-@dataclass(frozen=True)
-class ExplorerStatus:
-    """What the explorer is doing (for `/explorer/status`)."""
-
-    state: ExplorerState
-    island_id: int | None
-    target: tuple[int, int] | None
-    exits_left: int
-    done: bool
-    reason: str
-
-    def to_dict(self) -> dict[str, object]:
-        return {"state": self.state.value, "island": self.island_id,
-                "target": None if self.target is None else list(self.target),
-                "exits_left": self.exits_left, "done": self.done, "reason": self.reason}
-
-
-@dataclass(frozen=True)
-class _Here:
-    """Docked at island_id, whose origin is at origin_odom (odometry frame)."""
-
-    island_id: int
-    origin_odom: Pose2D
-
-
-class Explorer:
+class Explorer(TripEnds):
     """The mission (module docstring). Feed `on_graph` (the latest map), `on_events` (the
     builder's events), `on_strategy` (the hall follower's record), then `step(sense)` once per
     scan. `on_fix` sees every arrival's localization (evaluation compares it with the truth)."""
@@ -190,7 +128,7 @@ class Explorer:
         self.counts = {"exits_explored": 0, "exits_blocked": 0, "lost": 0, "returns": 0,
                        "retreats": 0, "arrivals": 0, "untrusted_arrivals": 0,
                        "side_exits_added": 0, "side_exits_explored": 0, "exits_deferred": 0,
-                       "relocalized": 0}
+                       "relocalized": 0, "rehearsals": 0, "closures_rehearsed": 0}
 
     # ----- inputs -----
 
@@ -237,11 +175,6 @@ class Explorer:
 
     # ----- the mission -----
 
-    @property
-    def _sense(self) -> Sense:
-        assert self._drive is not None
-        return self._drive.sense
-
     def _mission(self) -> Generator[Step, None, None]:
         here = yield from self._await_hand_back()
         while True:
@@ -263,7 +196,7 @@ class Explorer:
             self._target = (target.island_id, target.exit_index)
             here = yield from self._go_and_explore(here, target)
 
-    def _go_and_explore(self, here: _Here, target: Target) -> Generator[Step, None, _Here]:
+    def _go_and_explore(self, here: Here, target: Target) -> Generator[Step, None, Here]:
         """Drive to the target's island, depart by its exit, let the builder explore; where
         the robot is docked afterwards."""
         if target.island_id != here.island_id:
@@ -291,7 +224,7 @@ class Explorer:
         self.state = ExplorerState.HANDED_OVER
         return (yield from self._handed_over(here, target.exit_index))
 
-    def _await_hand_back(self) -> Generator[Step, None, _Here]:
+    def _await_hand_back(self) -> Generator[Step, None, Here]:
         """Let the builder side drive until it hands back at an island (island 0)."""
         while True:
             for e in self._events:
@@ -323,8 +256,8 @@ class Explorer:
                 return False
         return True
 
-    def _navigate(self, here: _Here, target: Target
-                  ) -> Generator[Step, None, tuple[_Here | None, _Here]]:
+    def _navigate(self, here: Here, target: Target
+                  ) -> Generator[Step, None, tuple[Here | None, Here]]:
         """Follow the route by the map; (where docked at the target or None, the last island
         docked at)."""
         d = self._drive
@@ -353,7 +286,7 @@ class Explorer:
             last = self._dock(e.target, fix)
         return last, last
 
-    def _retreat(self, e: Edge, last: _Here) -> Generator[Step, None, _Here | None]:
+    def _retreat(self, e: Edge, last: Here) -> Generator[Step, None, Here | None]:
         """After an arrival that did not localize: drive the edge's strategy reversed back to
         the island it left and localize there from where odometry says the robot is (no
         search along a hallway); docked there, or None (lost)."""
@@ -394,7 +327,7 @@ class Explorer:
         if self._on_fix is not None:
             self._on_fix(fix)
 
-    def _depart(self, here: _Here, exit_index: int) -> Generator[Step, None, bool]:
+    def _depart(self, here: Here, exit_index: int) -> Generator[Step, None, bool]:
         """Turn to the exit (through its gate) within max_edge_time_s; False when the way is
         closed or the time ran out (the robot back at the origin, as far as it can)."""
         d = self._drive
@@ -411,7 +344,7 @@ class Explorer:
             self._since_dock = MotionRecord(self._sense.odom)
             return False
 
-    def _depart_moves(self, here: _Here, exit_index: int) -> Generator[Step, None, bool]:
+    def _depart_moves(self, here: Here, exit_index: int) -> Generator[Step, None, bool]:
         d = self._drive
         assert d is not None
         island = self.graph.get_island(here.island_id)
@@ -423,8 +356,8 @@ class Explorer:
             self._since_dock = MotionRecord(self._sense.odom)
         return left
 
-    def _handed_over(self, here: _Here, exit_index: int | None
-                     ) -> Generator[Step, None, _Here]:
+    def _handed_over(self, here: Here, exit_index: int | None
+                     ) -> Generator[Step, None, Here]:
         """The builder side drives until it hands back at an island; past exit_cap_s (or after
         open_space_cap_s without both sides walls: the follower circles a room) the
         explorer asks it to stop and drives the robot back to `here`, and the exit is blocked.
@@ -433,25 +366,31 @@ class Explorer:
         # The events of this step came before the handover (the builder takes it after the
         # step): the hand-back that ended the last trip must not end this one too.
         self._events.clear()
-        t0 = self._sense.t_s
         watch = OpeningWatch(self.cfg, self._since_dock.strategy())
+        t0 = walled_t = self._sense.t_s  # walled_t: when both sides were last walls
         stuck = StuckWatch(self.cfg.stuck_s, self.cfg.stuck_m, self._sense)
-        walled_t = t0  # when both sides were last walls
         edges: list[Edge] = []
+        built: Island | None = None  # the island the builder built on this trip
+        rehearsed = False
         while True:
-            for e in self._events:
+            for e in list(self._events):
                 edges.extend([e.edge] if e.edge is not None else [])
+                built = e.island if e.kind is EventKind.ISLAND_ACCEPTED else built
+                if e.kind is EventKind.REVISIT_HYPOTHESIS:
+                    closed = yield from self._held_decision(here, exit_index, e, watch, edges)
+                    if closed is not None:
+                        return closed
+                    rehearsed = True  # the builder builds its island: the timers start again
+                    t0 = walled_t = self._sense.t_s
+                    stuck = StuckWatch(self.cfg.stuck_s, self.cfg.stuck_m, self._sense)
+                    break
                 if e.kind is EventKind.HANDED_BACK and e.accepted_island_id is not None:
-                    if exit_index is not None:  # a lost robot's wander is no way to an opening
-                        self._note_openings(here.island_id, watch)
-                    if exit_index is not None and e.accepted_island_id == here.island_id:
-                        self._mark_blocked(here.island_id, exit_index)  # back: nothing new
-                    elif exit_index is not None:
-                        self.counts["exits_explored"] += 1
-                        self._side_explored(here.island_id, exit_index, e.accepted_island_id,
-                                            edges)
+                    self._end_trip(here, exit_index, e.accepted_island_id, watch, edges)
                     self._awaited.extend(_updates_of(self._events))
-                    return self._docked_by_builder(e)
+                    back = self._docked_by_builder(e)
+                    if rehearsed and built is not None and built.id == back.island_id:
+                        return (yield from self._settle(back, built))
+                    return back
                 if e.kind is EventKind.STOPPED:
                     if exit_index is not None:
                         self._note_openings(here.island_id, watch)
@@ -466,31 +405,14 @@ class Explorer:
                 self._requests.append(Abort())
             yield None
 
-    # ----- side exits -----
-
-    def _note_openings(self, island_id: int, watch: OpeningWatch) -> None:
-        """The openings seen on the way from island_id become its side exits (new ones only)."""
-        new = noted_side_exits(self.graph, island_id, watch, self.cfg, self._side_sent)
-        self._requests.extend(NewExit(island_id, ex) for ex in new)
-        self.counts["side_exits_added"] += len(new)
-
-    def _side_explored(self, island_id: int, index: int, reached: int, edges: list[Edge]
-                       ) -> None:
-        """A side exit's trip ended at island `reached`: never chosen again (`side_trip_end`)."""
-        update = side_trip_end(self.graph, self._side_sent, (island_id, index), reached, edges)
-        if update is not None:
-            self._blocked.add((island_id, index))
-            self.counts["side_exits_explored"] += 1
-            self._requests.append(update)
-
-    def _docked_by_builder(self, e: BuilderEvent) -> _Here:
+    def _docked_by_builder(self, e: BuilderEvent) -> Here:
         assert e.accepted_island_id is not None
         origin = e.anchor_odom if e.anchor_odom is not None else e.odom_pose
         self._since_dock = MotionRecord(self._sense.odom)
         self._way.restart(origin)
-        return _Here(e.accepted_island_id, origin)
+        return Here(e.accepted_island_id, origin)
 
-    def _return(self, here: _Here, exit_index: int | None) -> Generator[Step, None, _Here]:
+    def _return(self, here: Here, exit_index: int | None) -> Generator[Step, None, Here]:
         """Back to the island left, by the reversed record of the way out."""
         self.state = ExplorerState.RETURNING
         self.counts["returns"] += 1
@@ -520,19 +442,19 @@ class Explorer:
             return (yield from self._lost(here))
         return self._dock(here.island_id, fix)
 
-    def _dock(self, island_id: int, fix: Fix) -> _Here:
+    def _dock(self, island_id: int, fix: Fix) -> Here:
         """Docked at island_id's origin by the explorer's own localization (`fix`: where the
         last look put the origin in the odometry frame; the robot stands within the docking
         tolerance of it): tell the builder."""
         origin = fix.origin_odom if fix.origin_odom is not None else self._sense.odom
-        here = _Here(island_id, origin)
+        here = Here(island_id, origin)
         self._requests.append(Docked(here.island_id, here.origin_odom))
         self._since_dock = MotionRecord(self._sense.odom)
         self._way.restart(origin)
         self._here = island_id
         return here
 
-    def _lost(self, last: _Here) -> Generator[Step, None, _Here]:
+    def _lost(self, last: Here) -> Generator[Step, None, Here]:
         """An arrival did not localize: the builder takes over as if the robot had left the
         last island docked at by no known exit, with everything driven since as the prefix."""
         self.state = ExplorerState.LOST

@@ -1,0 +1,172 @@
+"""More evidence for a held star (`core.builder.held`): a rehearsal of a known island's edge.
+
+The builder's star fitted a known island C, but also another place (a look-alike): deciding
+on the spot either builds a duplicate of C or merges two places. Kuipers' rehearsal procedure
+(the paper's reference [1]) tells them apart by what lies beyond: if the robot stands at C, C's
+edge to a neighbour D, driven from C's origin, ends at D, where the robot localizes in D's
+model. A look-alike of C rarely has a look-alike of D at the end of the same strategy.
+
+`rehearse` drives it: onto C's origin as the star's fit puts it (a look there must localize in
+C: otherwise the hypothesis fails at once), then the shortest edge of C to a neighbour (its
+strategy, or the reverse of an edge into C), then a look at D within `rehearse_max_shift_m` of
+its origin (no search along a hallway: a far basin would confirm a look-alike). Confirmed: the
+robot is docked at D. Refused: the edge is driven back and the robot stands near C's supposed
+origin, the star's place, again.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Generator
+from dataclasses import dataclass
+
+import numpy as np
+from island_msgs_py.raycast import raycast
+from island_msgs_py.types import ControlStrategy, Edge, FloatArray, LineModel, Pose2D, wrap_angle
+
+from island_mapping.core.builder import Hypothesis
+from island_mapping.core.explore.config import ExplorerConfig
+from island_mapping.core.graph import TopoGraph, reverse_strategy
+from island_mapping.core.route import (
+    Command,
+    Drive,
+    Fix,
+    RouteTimeoutError,
+    Sense,
+    execute_strategy,
+    go_to,
+    localize_and_dock,
+    step,
+)
+from island_mapping.core.route.arrival import FixHook
+
+# A wall the model puts within this range of the robot [m], met by a beam's axis within this of
+# head-on [deg], echoes (the ring's cones return an echo up to 30 deg off the normal); an echo
+# farther than it by more than the margin [m] heard through it.
+MUST_ECHO_M = 3.0
+MUST_ECHO_DEG = 20.0
+THROUGH_MARGIN_M = 0.3
+
+Scan = tuple[Pose2D, FloatArray, FloatArray]
+"""One scan of a look: the odometric pose, the ranges [m] (inf: no echo), their angles [rad]."""
+
+
+@dataclass(frozen=True)
+class Trial:
+    """The edge a rehearsal drives: from the hypothesis' island to `neighbour` by `strategy`."""
+
+    neighbour: int
+    strategy: ControlStrategy
+
+
+@dataclass(frozen=True)
+class Rehearsal:
+    """How a rehearsal ended: `fix` at the neighbour when confirmed, else None."""
+
+    island_id: int
+    trial: Trial | None
+    fix: Fix | None
+
+    @property
+    def confirmed(self) -> bool:
+        return self.fix is not None and self.fix.trusted
+
+
+def trial_edge(graph: TopoGraph, island_id: int, avoid: int | None = None) -> Trial | None:
+    """The edge a rehearsal at island island_id drives: its shortest to another island (an edge
+    into it driven backwards, as routes do), ties to the lower neighbour id; one to `avoid`
+    (the island the robot came from: odometry already relates the two) only when there is no
+    other; None without any."""
+    best: tuple[bool, float, int, Edge] | None = None
+    for e in graph.iter_edges():
+        if island_id not in (e.source, e.target) or e.source == e.target:
+            continue
+        other = e.target if e.source == island_id else e.source
+        if other not in graph:
+            continue
+        key = (other == avoid, e.length_m, other, e)
+        if best is None or key[:3] < best[:3]:
+            best = key
+    if best is None:
+        return None
+    e = best[3]
+    return Trial(best[2], e.strategy if e.source == island_id else reverse_strategy(e.strategy))
+
+
+def rehearse(d: Drive, graph: TopoGraph, hyp: Hypothesis, odom_then: Pose2D,
+             cfg: ExplorerConfig, came_from: int | None = None,
+             on_fix: FixHook | None = None) -> Generator[Command, None, Rehearsal]:
+    """Test `hyp` (the robot's pose in its island's frame when the robot stood at odometric
+    pose odom_then) by its island's shortest edge, not to island came_from where another
+    exists (module docstring). on_fix sees the neighbour's localization, the one the robot
+    reports; the look at the hypothesis' own island is only a test and is not reported."""
+    if hyp.island_id not in graph:
+        return Rehearsal(hyp.island_id, None, None)
+    trial = trial_edge(graph, hyp.island_id, came_from)
+    if trial is None:
+        return Rehearsal(hyp.island_id, None, None)
+    island = graph.get_island(hyp.island_id)
+    origin_odom = odom_then.compose(hyp.pose.inverse())  # where the hypothesis puts the origin
+    d.deadline_s = d.sense.t_s + d.cfg.max_edge_time_s
+    try:
+        yield from go_to(d, origin_odom)
+        here = yield from localize_and_dock(d, island, d.sense.odom.relative_to(origin_odom),
+                                            None, cfg.return_max_shift_m)
+    except RouteTimeoutError:
+        return Rehearsal(hyp.island_id, trial, None)
+    if not here.trusted or here.origin_odom is None:
+        return Rehearsal(hyp.island_id, trial, None)
+    d.deadline_s = d.sense.t_s + d.cfg.max_edge_time_s
+    fix: Fix | None = None
+    try:
+        yield from execute_strategy(d, trial.strategy)
+        neighbour = graph.get_island(trial.neighbour)
+        fix = yield from localize_and_dock(d, neighbour, Pose2D(0.0, 0.0, 0.0), on_fix,
+                                           cfg.rehearse_max_shift_m)
+        if fix.trusted and fix.origin_odom is not None:
+            scans = yield from look_scans(d)
+            if heard_through(neighbour.model, fix.origin_odom, scans) <= cfg.rehearse_through:
+                return Rehearsal(hyp.island_id, trial, fix)
+        d.deadline_s = d.sense.t_s + d.cfg.max_edge_time_s
+        yield from execute_strategy(d, reverse_strategy(trial.strategy))
+    except RouteTimeoutError:
+        pass
+    return Rehearsal(hyp.island_id, trial, None)
+
+
+def _scan(sense: Sense) -> Scan:
+    return sense.odom, np.asarray(sense.ranges_m, dtype=np.float64), np.asarray(
+        sense.angles_rad, dtype=np.float64)
+
+
+def look_scans(d: Drive) -> Generator[Command, None, list[Scan]]:
+    """Turn once in place keeping every scan whole (`heard_through` needs the beams that
+    heard nothing, which a look's echo points leave out)."""
+    scans = [_scan(d.sense)]
+    done, last = 0.0, d.sense.odom.theta
+    while done < 2.0 * math.pi:
+        yield from step(d, 0.0, d.cfg.turn_rate_radps)
+        done += wrap_angle(d.sense.odom.theta - last)
+        last = d.sense.odom.theta
+        scans.append(_scan(d.sense))
+    yield from step(d, 0.0, 0.0)
+    return scans
+
+
+def heard_through(model: LineModel, origin_odom: Pose2D, scans: list[Scan]) -> float:
+    """Of the beams `model` (its origin at origin_odom) says must echo (a wall within
+    MUST_ECHO_M met within MUST_ECHO_DEG of head-on), the fraction that heard nothing there
+    (no echo, or one beyond the wall by THROUGH_MARGIN_M) [-]; 0 when none must. A fit
+    explains the echoes it has; this asks whether the walls it shows were heard: a look-alike
+    place fits the island's model as well, but the ring hears through walls it lacks."""
+    must = through = 0
+    cos_min = math.cos(math.radians(MUST_ECHO_DEG))
+    for odom, ranges, angles in scans:
+        p = odom.relative_to(origin_odom)
+        hits = raycast(model.segments, np.tile([p.x, p.y], (angles.size, 1)),
+                       p.theta + angles, MUST_ECHO_M)
+        want = np.isfinite(hits.distance_m) & (hits.cos_incidence >= cos_min)
+        heard = np.isfinite(ranges) & (ranges <= hits.distance_m + THROUGH_MARGIN_M)
+        must += int(np.count_nonzero(want))
+        through += int(np.count_nonzero(want & ~heard))
+    return through / must if must else 0.0

@@ -1,0 +1,218 @@
+"""Loop closure by more evidence (issue 16): a star that fits a known island and a look-alike
+is held by the builder, and the explorer rehearses the island's edge to its neighbour before
+the map docks it (Kuipers' rehearsal).
+
+The explorer runs against a simulated robot (exact odometry, the sonar ring) in a corridor with
+two identical T junctions 16 m apart; the "builder" is scripted (it holds a star at whichever
+T the robot stands in, with island 1, the western T, as the hypothesis). At the western T the
+rehearsal drives island 1's edge to island 0, the corridor's dead end, localizes there and
+confirms; at the eastern T the same strategy ends in plain corridor, no look localizes, the
+robot drives back and the explorer rejects. Public APIs: `Explorer.step`, `rehearse`'s
+`trial_edge`, the builder's `confirm`/`reject`, the request and event conversions.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from island_mapping.conversions import (
+    ExplorerMessageError,
+    decision_to_msg,
+    msg_to_decision,
+    parameter_to_request,
+    request_to_parameter,
+)
+from island_mapping.core.builder import (
+    BuilderError,
+    BuilderEvent,
+    CommandMode,
+    EventKind,
+    Hypothesis,
+    IslandBuilder,
+)
+from island_mapping.core.builder.hooks import BuilderHooks
+from island_mapping.core.explore import Confirm, Docked, Explorer, ExplorerConfig, Handover, Reject
+from island_mapping.core.explore.rehearse import trial_edge
+from island_mapping.core.graph import TopoGraph
+from island_mapping.core.route import Sense
+from island_msgs_py.raycast import NearbyRayCaster
+from island_msgs_py.types import (
+    ControlStrategy,
+    Edge,
+    Exit,
+    Island,
+    LineModel,
+    ModelType,
+    Pose2D,
+)
+from island_sim.core.importers import rectangles_to_segments
+from island_sim.core.robot import OdometryConfig, SimRobot
+from island_sim.core.sonar import SonarModel
+from island_sim.core.world import World
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from std_msgs.msg import String
+
+# A 2 m corridor from x = 0 (a dead end) to x = 32, with 8 m branches north at x = 6-8 and
+# x = 22-24: two identical T junctions, 16 m apart.
+RECTS = [(0.0, 0.0, 32.0, 2.0), (6.0, 2.0, 8.0, 10.0), (22.0, 2.0, 24.0, 10.0)]
+WORLD = World(rectangles_to_segments(RECTS, 0.25), name="twin_t")
+DEAD_END = Pose2D(1.5, 1.0, 0.0)  # island 0
+WEST_T = Pose2D(7.0, 2.6, math.pi / 2)  # island 1, in the branch's mouth, facing north
+EAST_T = Pose2D(23.0, 2.6, math.pi / 2)  # island 1's look-alike
+EAST_END = Pose2D(30.0, 1.0, math.pi)  # island 2, where the trip starts (facing west)
+MODEL_RADIUS_M = 7.0
+
+
+def _model(origin: Pose2D) -> LineModel:
+    """The world's walls within a square of half-side MODEL_RADIUS_M around `origin` (they
+    are axis-aligned: clipped to it), in its frame (an island's line model)."""
+    r = MODEL_RADIUS_M
+    segs = np.asarray(WORLD.segments).copy()
+    segs[:, [0, 2]] = np.clip(segs[:, [0, 2]], origin.x - r, origin.x + r)
+    segs[:, [1, 3]] = np.clip(segs[:, [1, 3]], origin.y - r, origin.y + r)
+    length = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
+    inside = (np.abs(0.5 * (segs[:, 0] + segs[:, 2]) - origin.x) < r) & (
+        np.abs(0.5 * (segs[:, 1] + segs[:, 3]) - origin.y) < r)
+    near = segs[(length > 0.1) & inside]
+    c, s = math.cos(origin.theta), math.sin(origin.theta)
+    out = []
+    for x1, y1, x2, y2 in near:
+        ends = []
+        for x, y in ((x1, y1), (x2, y2)):
+            dx, dy = x - origin.x, y - origin.y
+            ends += [c * dx + s * dy, -s * dx + c * dy]
+        out.append(ends)
+    return LineModel(np.array(out))
+
+
+def _map() -> TopoGraph:
+    """Island 0 at the dead end, island 1 at the western T (an edge 0 -> 1: 5.5 m east, a
+    quarter turn left, 1.6 m north), island 2 at the east end with one unexplored exit
+    (west)."""
+    islands = [Island(0, _model(DEAD_END), ModelType.LINE, 1.0, 0.0),
+               Island(1, _model(WEST_T), ModelType.LINE, 1.0, 0.0),
+               Island(2, _model(EAST_END), ModelType.LINE, 1.0, 0.0,
+                      exits=(Exit(0, 0.0, 2.0),))]
+    edge = Edge(0, 1, ControlStrategy.parse("Go 550, Rot 90, Go 160"), 7.1, 7.1, 0.1)
+    return TopoGraph.from_parts(islands, [edge])
+
+
+class SimBody:
+    """The simulated robot with exact odometry and the project's sonar ring."""
+
+    def __init__(self, start: Pose2D) -> None:
+        self.robot = SimRobot(WORLD, start, np.random.default_rng(3),
+                              odometry=OdometryConfig.exact())
+        self.sonar = SonarModel()
+        self.near = NearbyRayCaster(WORLD, self.sonar.config.range_max_m)
+        self.rng = np.random.default_rng(4)
+
+    def sense(self) -> Sense:
+        r = self.robot
+        ranges = self.sonar.scan(self.near, r.true_pose, self.rng)
+        return Sense(r.time_s, r.odom_pose, ranges, self.sonar.angles_rad, r.velocity[1])
+
+    def move(self, v: float, w: float) -> None:
+        for _ in range(5):
+            self.robot.step(v, w, 0.02)
+
+
+def _rehearse_from(stop_at: Pose2D) -> tuple[list[object], SimBody]:
+    """The trip from island 2 west along the corridor; at `stop_at` the scripted builder holds
+    its star with island 1 as the hypothesis (the robot's pose in island 1's frame as if it
+    stood at the western T). The explorer's requests until it confirms or rejects, and the
+    robot."""
+    body = SimBody(EAST_END)
+    ex = Explorer(ExplorerConfig())
+    ex.on_graph(_map())
+    ex.on_events([BuilderEvent(EventKind.HANDED_BACK, 0.0, EAST_END, 0.1, anchor_odom=EAST_END,
+                               accepted_island_id=2)])
+    requests: list[object] = []
+    following = False
+    for _ in range(30_000):
+        out = ex.step(body.sense())
+        requests.extend(out.requests)
+        if any(isinstance(r, Confirm | Reject) for r in out.requests):
+            return requests, body
+        if any(isinstance(r, Handover) for r in out.requests):
+            following = True
+        pose = body.robot.true_pose
+        if out.drive:
+            body.move(out.v_mps, out.w_radps)
+        elif following and pose.x > stop_at.x:
+            body.move(0.4, 2.0 * math.remainder(math.pi - pose.theta, 2 * math.pi))
+        elif following:
+            following = False
+            here = body.robot.odom_pose
+            in_t = pose.relative_to(stop_at)
+            ex.on_events([BuilderEvent(EventKind.REVISIT_HYPOTHESIS, body.robot.time_s, here,
+                                       0.5, hypotheses=(Hypothesis(1, in_t, 0.9),))])
+        else:
+            body.move(0.0, 0.0)
+    raise AssertionError("the explorer neither confirmed nor rejected")
+
+
+@pytest.mark.slow
+def test_a_rehearsal_at_the_right_island_confirms_and_docks_at_its_neighbour() -> None:
+    requests, body = _rehearse_from(WEST_T)
+    assert any(isinstance(r, Confirm) and r.island_id == 1 for r in requests)
+    assert not any(isinstance(r, Reject) for r in requests)
+    # The robot stands at island 0's origin: the edge 0 -> 1 driven backwards ended there.
+    p = body.robot.true_pose
+    assert math.hypot(p.x - DEAD_END.x, p.y - DEAD_END.y) < 0.5
+    assert body.robot.collisions == 0
+
+
+@pytest.mark.slow
+def test_a_rehearsal_at_a_look_alike_rejects_and_comes_back() -> None:
+    requests, body = _rehearse_from(EAST_T)
+    assert any(isinstance(r, Reject) for r in requests)
+    assert not any(isinstance(r, Confirm | Docked) for r in requests)
+    # Driven back to the look-alike, where the builder builds its island (the dock at the
+    # false neighbour slid along the corridor: the way back ends a few metres off).
+    p = body.robot.true_pose
+    assert math.hypot(p.x - EAST_T.x, p.y - EAST_T.y) < 3.0
+    assert body.robot.collisions == 0
+
+
+def test_the_rehearsal_drives_the_shortest_edge_not_back_where_it_came_from() -> None:
+    islands = [Island(i, LineModel(), ModelType.LINE, 1.0, 0.0) for i in range(4)]
+    edges = [Edge(0, 1, ControlStrategy.parse("Go 300"), 3.0, 3.0, 0.1),
+             Edge(2, 1, ControlStrategy.parse("Go 900"), 9.0, 9.0, 0.1),
+             Edge(1, 3, ControlStrategy.parse("Go 1200"), 12.0, 12.0, 0.1)]
+    graph = TopoGraph.from_parts(islands, edges)
+    back = trial_edge(graph, 1)
+    assert back is not None and back.neighbour == 0
+    assert str(back.strategy) == "Rot 180, Go 300, Rot 180"  # an edge into 1, backwards
+    other = trial_edge(graph, 1, avoid=0)
+    assert other is not None and other.neighbour == 2
+    assert trial_edge(graph, 3) is not None and trial_edge(TopoGraph.from_parts(islands, []),
+                                                           1) is None
+
+
+def test_confirm_and_reject_need_a_held_decision() -> None:
+    builder = IslandBuilder(hooks=BuilderHooks(managed=True, hold_hypotheses=2))
+    with pytest.raises(BuilderError, match="confirm: no decision is held"):
+        builder.confirm(0)
+    with pytest.raises(BuilderError, match="reject: no decision is held"):
+        builder.reject()
+
+
+def test_held_decisions_and_their_answers_cross_the_wire() -> None:
+    for r in (Confirm(4), Reject()):
+        assert parameter_to_request(request_to_parameter(r)) == r
+    hyp = Hypothesis(3, Pose2D(0.2, -0.1, 3.0), 0.91)
+    event = BuilderEvent(EventKind.REVISIT_HYPOTHESIS, 12.5, Pose2D(1.0, 2.0, 0.5), 0.4,
+                         anchor_odom=Pose2D(1.0, 2.0, 0.5), hypotheses=(hyp,))
+    back = msg_to_decision(decision_to_msg(125, CommandMode.IDLE, (event,)))
+    assert back.events[0].kind is EventKind.REVISIT_HYPOTHESIS
+    assert back.events[0].hypotheses == (hyp,)
+    bad = String(data=decision_to_msg(1, CommandMode.IDLE, (event,)).data.replace(
+        '"island": 3', '"island": -3'))
+    with pytest.raises(ExplorerMessageError, match=r"hypotheses\[0\].island"):
+        msg_to_decision(bad)
+    with pytest.raises(ExplorerMessageError, match="confirm"):
+        parameter_to_request(Parameter(name="confirm", value=ParameterValue(
+            type=ParameterType.PARAMETER_STRING, string_value='{"island": "x"}')))
