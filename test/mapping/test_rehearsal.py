@@ -34,7 +34,7 @@ from island_mapping.core.builder import (
 )
 from island_mapping.core.builder.hooks import BuilderHooks
 from island_mapping.core.explore import Confirm, Docked, Explorer, ExplorerConfig, Handover, Reject
-from island_mapping.core.explore.rehearse import trial_edge
+from island_mapping.core.explore.rehearse import heard_through, trial_edge
 from island_mapping.core.graph import TopoGraph
 from island_mapping.core.route import Sense
 from island_msgs_py.raycast import NearbyRayCaster
@@ -216,3 +216,21 @@ def test_held_decisions_and_their_answers_cross_the_wire() -> None:
     with pytest.raises(ExplorerMessageError, match="confirm"):
         parameter_to_request(Parameter(name="confirm", value=ParameterValue(
             type=ParameterType.PARAMETER_STRING, string_value='{"island": "x"}')))
+
+
+def test_walls_the_model_shows_must_have_been_heard() -> None:
+    """A wall 2 m ahead that the ring heard there is no evidence against the place; one that
+    it heard through (no echo, or an echo far beyond it) is; model walls nearer than 1 m (a
+    star's phantoms around its origin) are not asked."""
+    model = LineModel(np.array([[2.0, -2.0, 2.0, 2.0], [0.5, -2.0, 0.5, -1.0]]))
+    angles = np.array([0.0, math.pi / 2, math.pi])
+    origin = Pose2D(5.0, 3.0, 0.0)
+    heard = [(origin, np.array([2.02, np.inf, np.inf]), angles)]
+    through = [(origin, np.array([np.inf, np.inf, np.inf]), angles)]
+    beyond = [(origin, np.array([4.5, np.inf, np.inf]), angles)]
+    assert heard_through(model, origin, heard) == 0.0
+    assert heard_through(model, origin, through) == 1.0
+    assert heard_through(model, origin, beyond) == 1.0
+    turned = [(Pose2D(5.0, 3.0, math.pi / 2), np.array([np.inf]), np.array([-math.pi / 2]))]
+    assert heard_through(model, origin, turned) == 1.0  # the robot turned: its right faces it
+    assert heard_through(LineModel(np.array([[0.6, -1.0, 0.6, 1.0]])), origin, through) == 0.0
