@@ -34,7 +34,7 @@ from island_mapping.core.builder import (
 )
 from island_mapping.core.builder.hooks import BuilderHooks
 from island_mapping.core.explore import Confirm, Docked, Explorer, ExplorerConfig, Handover, Reject
-from island_mapping.core.explore.rehearse import heard_through, trial_edge
+from island_mapping.core.explore.rehearse import heard_through, trial_edges
 from island_mapping.core.graph import TopoGraph
 from island_mapping.core.route import Sense
 from island_msgs_py.raycast import NearbyRayCaster
@@ -177,19 +177,18 @@ def test_a_rehearsal_at_a_look_alike_rejects_and_comes_back() -> None:
     assert body.robot.collisions == 0
 
 
-def test_the_rehearsal_drives_the_shortest_edge_not_back_where_it_came_from() -> None:
+def test_the_rehearsal_drives_the_shortest_edges_not_back_where_it_came_from() -> None:
     islands = [Island(i, LineModel(), ModelType.LINE, 1.0, 0.0) for i in range(4)]
     edges = [Edge(0, 1, ControlStrategy.parse("Go 300"), 3.0, 3.0, 0.1),
              Edge(2, 1, ControlStrategy.parse("Go 900"), 9.0, 9.0, 0.1),
              Edge(1, 3, ControlStrategy.parse("Go 1200"), 12.0, 12.0, 0.1)]
     graph = TopoGraph.from_parts(islands, edges)
-    back = trial_edge(graph, 1)
-    assert back is not None and back.neighbour == 0
+    (back,) = trial_edges(graph, 1)
+    assert back.neighbour == 0
     assert str(back.strategy) == "Rot 180, Go 300, Rot 180"  # an edge into 1, backwards
-    other = trial_edge(graph, 1, avoid=0)
-    assert other is not None and other.neighbour == 2
-    assert trial_edge(graph, 3) is not None and trial_edge(TopoGraph.from_parts(islands, []),
-                                                           1) is None
+    assert [t.neighbour for t in trial_edges(graph, 1, avoid=0, k=3)] == [2, 3, 0]
+    assert str(trial_edges(graph, 1, avoid=0, k=3)[1].strategy) == "Go 1200"
+    assert trial_edges(TopoGraph.from_parts(islands, []), 1) == []
 
 
 def test_confirm_and_reject_need_a_held_decision() -> None:

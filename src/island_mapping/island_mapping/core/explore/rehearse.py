@@ -6,24 +6,33 @@ on the spot either builds a duplicate of C or merges two places. Kuipers' rehear
 edge to a neighbour D, driven from C's origin, ends at D, where the robot localizes in D's
 model. A look-alike of C rarely has a look-alike of D at the end of the same strategy.
 
-`rehearse` drives it: onto C's origin as the star's fit puts it (a look there must localize in
-C: otherwise the hypothesis fails at once), then the shortest edge of C to a neighbour (its
-strategy, or the reverse of an edge into C), then a look at D within `rehearse_max_shift_m` of
-its origin (no search along a hallway: a far basin would confirm a look-alike), where the dock
-must end on D's origin (`docked`) and the walls D's model shows must have been heard
-(`heard_through`). Confirmed: the robot is docked at D. Refused: the edge is driven back and
-the robot stands near C's supposed origin, the star's place, again.
+`rehearse` drives it: onto C's origin as the star's fit puts it, where the robot must be
+found at C (`_found`: a trusted look within `return_max_shift_m`, a dock that ends on the
+origin, `docked`, and the walls C's model shows heard, `heard_through`), else the hypothesis
+fails at once; then C's shortest edge to a neighbour D (its strategy, or the reverse of an
+edge into C), and a look at D within `rehearse_max_shift_m` of its origin (no search along a
+hallway: a far basin would confirm a look-alike) where the robot must be found at D in the
+same way. Confirmed: the robot is docked at D. Not found: the edge is driven back, the robot
+docks at C again and tries C's next edge (`rehearse_edges`); after the last the robot stands
+near C's supposed origin, the star's place.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Generator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from island_msgs_py.raycast import raycast
-from island_msgs_py.types import ControlStrategy, Edge, FloatArray, LineModel, Pose2D, wrap_angle
+from island_msgs_py.types import (
+    ControlStrategy,
+    FloatArray,
+    Island,
+    LineModel,
+    Pose2D,
+    wrap_angle,
+)
 
 from island_mapping.core.builder import Hypothesis
 from island_mapping.core.explore.config import ExplorerConfig
@@ -83,66 +92,86 @@ class Rehearsal:
         return self.fix is not None and self.fix.trusted
 
 
-def trial_edge(graph: TopoGraph, island_id: int, avoid: int | None = None) -> Trial | None:
-    """The edge a rehearsal at island island_id drives: its shortest to another island (an edge
-    into it driven backwards, as routes do), ties to the lower neighbour id; one to `avoid`
-    (the island the robot came from: odometry already relates the two) only when there is no
-    other; None without any."""
-    best: tuple[bool, float, int, Edge] | None = None
+def trial_edges(graph: TopoGraph, island_id: int, avoid: int | None = None, k: int = 1
+                ) -> list[Trial]:
+    """The edges a rehearsal at island island_id drives, at most k, shortest first (an edge
+    into it driven backwards, as routes do; ties to the lower neighbour id); those to `avoid`
+    (the island the robot came from: odometry already relates the two) after all others."""
+    found: list[tuple[bool, float, int, Trial]] = []
     for e in graph.iter_edges():
         if island_id not in (e.source, e.target) or e.source == e.target:
             continue
         other = e.target if e.source == island_id else e.source
-        if other not in graph:
+        if other not in graph or any(f[2] == other for f in found):
             continue
-        key = (other == avoid, e.length_m, other, e)
-        if best is None or key[:3] < best[:3]:
-            best = key
-    if best is None:
-        return None
-    e = best[3]
-    return Trial(best[2], e.strategy if e.source == island_id else reverse_strategy(e.strategy))
+        way = e.strategy if e.source == island_id else reverse_strategy(e.strategy)
+        found.append((other == avoid, e.length_m, other, Trial(other, way)))
+    found.sort(key=lambda f: f[:3])
+    return [f[3] for f in found[:k]]
 
 
 def rehearse(d: Drive, graph: TopoGraph, hyp: Hypothesis, odom_then: Pose2D,
              cfg: ExplorerConfig, came_from: int | None = None,
              on_fix: FixHook | None = None) -> Generator[Command, None, Rehearsal]:
     """Test `hyp` (the robot's pose in its island's frame when the robot stood at odometric
-    pose odom_then) by its island's shortest edge, not to island came_from where another
-    exists (module docstring). on_fix sees the neighbour's localization, the one the robot
-    reports; the look at the hypothesis' own island is only a test and is not reported."""
+    pose odom_then) by its island's shortest edges (rehearse_edges of them, not to island
+    came_from where others exist; module docstring). on_fix sees the neighbour's
+    localization once it confirms, the one the robot reports; the looks at the hypothesis'
+    own island are only a test and are not reported."""
     if hyp.island_id not in graph:
-        return Rehearsal(hyp.island_id, None, None)
-    trial = trial_edge(graph, hyp.island_id, came_from)
-    if trial is None:
         return Rehearsal(hyp.island_id, None, None)
     island = graph.get_island(hyp.island_id)
     origin_odom = odom_then.compose(hyp.pose.inverse())  # where the hypothesis puts the origin
+    trial: Trial | None = None
+    for trial in trial_edges(graph, hyp.island_id, came_from, cfg.rehearse_edges):
+        d.deadline_s = d.sense.t_s + d.cfg.max_edge_time_s
+        try:
+            yield from go_to(d, origin_odom)
+            here = yield from localize_and_dock(
+                d, island, d.sense.odom.relative_to(origin_odom), None, cfg.return_max_shift_m)
+        except RouteTimeoutError:
+            break
+        if not (yield from _found(d, island, here, cfg)):
+            break
+        assert here.origin_odom is not None
+        origin_odom = here.origin_odom
+        fix = yield from _trial(d, graph, trial, cfg)
+        if fix is not None:
+            if on_fix is not None:
+                on_fix(fix)
+            return Rehearsal(hyp.island_id, trial, fix)
+    return Rehearsal(hyp.island_id, trial, None)
+
+
+def _trial(d: Drive, graph: TopoGraph, trial: Trial, cfg: ExplorerConfig
+           ) -> Generator[Command, None, Fix | None]:
+    """From the hypothesis' origin (docked there) drive `trial` and look for the neighbour:
+    its fix, the robot's pose in its frame after docking there, when the dock ended on its
+    origin and its walls were heard; else None, the edge driven back."""
     d.deadline_s = d.sense.t_s + d.cfg.max_edge_time_s
-    try:
-        yield from go_to(d, origin_odom)
-        here = yield from localize_and_dock(d, island, d.sense.odom.relative_to(origin_odom),
-                                            None, cfg.return_max_shift_m)
-    except RouteTimeoutError:
-        return Rehearsal(hyp.island_id, trial, None)
-    if not here.trusted or here.origin_odom is None:
-        return Rehearsal(hyp.island_id, trial, None)
-    d.deadline_s = d.sense.t_s + d.cfg.max_edge_time_s
-    fix: Fix | None = None
     try:
         yield from execute_strategy(d, trial.strategy)
         neighbour = graph.get_island(trial.neighbour)
-        fix = yield from localize_and_dock(d, neighbour, Pose2D(0.0, 0.0, 0.0), on_fix,
+        fix = yield from localize_and_dock(d, neighbour, Pose2D(0.0, 0.0, 0.0), None,
                                            cfg.rehearse_max_shift_m)
-        if fix.trusted and fix.origin_odom is not None and docked(d.sense.odom, fix.origin_odom):
-            scans = yield from look_scans(d)
-            if heard_through(neighbour.model, fix.origin_odom, scans) <= cfg.rehearse_through:
-                return Rehearsal(hyp.island_id, trial, fix)
+        if (yield from _found(d, neighbour, fix, cfg)):
+            assert fix.origin_odom is not None
+            return replace(fix, pose=d.sense.odom.relative_to(fix.origin_odom))
         d.deadline_s = d.sense.t_s + d.cfg.max_edge_time_s
         yield from execute_strategy(d, reverse_strategy(trial.strategy))
     except RouteTimeoutError:
         pass
-    return Rehearsal(hyp.island_id, trial, None)
+    return None
+
+
+def _found(d: Drive, island: Island, fix: Fix, cfg: ExplorerConfig
+           ) -> Generator[Command, None, bool]:
+    """Is the robot at `island` by `fix`: trusted, the dock ended on its origin (`docked`),
+    and a look there heard the walls its model shows (`heard_through`)?"""
+    if not fix.trusted or fix.origin_odom is None or not docked(d.sense.odom, fix.origin_odom):
+        return False
+    scans = yield from look_scans(d)
+    return heard_through(island.model, fix.origin_odom, scans) <= cfg.rehearse_through
 
 
 def _scan(sense: Sense) -> Scan:

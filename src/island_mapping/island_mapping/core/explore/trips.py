@@ -73,6 +73,10 @@ class TripEnds:
     def _mark_blocked(self, island_id: int, exit_index: int) -> None:
         raise NotImplementedError  # the mission's
 
+    def _again(self, island: Island, origin_odom: Pose2D, fix: Fix | None
+               ) -> Generator[Step, None, Fix | None]:
+        raise NotImplementedError  # the mission's
+
     def _end_trip(self, here: Here, exit_index: int | None, reached: int,
                   watch: OpeningWatch, edges: list[Edge]) -> None:
         """A trip from `here` by exit exit_index (None: a lost robot's) ended at island
@@ -133,12 +137,13 @@ class TripEnds:
         assert d is not None
         d.deadline_s = self._sense.t_s + self.nav.max_edge_time_s
         try:
-            fix = yield from localize_and_dock(d, island,
-                                               self._sense.odom.relative_to(here.origin_odom),
-                                               self._fixed, self.cfg.return_max_shift_m)
+            first: Fix | None = yield from localize_and_dock(
+                d, island, self._sense.odom.relative_to(here.origin_odom), self._fixed,
+                self.cfg.return_max_shift_m)
         except RouteTimeoutError:
-            return here
-        return self._dock(here.island_id, fix) if fix.trusted else here
+            first = None
+        fix = yield from self._again(island, here.origin_odom, first)
+        return self._dock(here.island_id, fix) if fix is not None and fix.trusted else here
 
     def _note_openings(self, island_id: int, watch: OpeningWatch) -> None:
         """The openings seen on the way from island_id become its side exits (new ones only)."""
