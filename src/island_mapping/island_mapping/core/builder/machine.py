@@ -161,7 +161,7 @@ class IslandBuilder(ManagedInputs):
             if look.phase is LookPhase.LOOK:
                 look.points.append(pts)
             return
-        if self._state is State.IDLE:
+        if self._state in (State.IDLE, State.HELD):  # the explorer drives: not its history
             return
         if self._state is State.FOLLOWING and self.config.opening.enabled:
             self._openings.observe(r, a, self._path_m, self._odom.theta)

@@ -69,7 +69,7 @@ from island_mapping.core.explore.requests import (
     Handover,
     Request,
 )
-from island_mapping.core.explore.trips import Here, TripEnds
+from island_mapping.core.explore.trips import Here, Step, TripEnds
 from island_mapping.core.explore.watch import Deferred, StuckWatch
 from island_mapping.core.graph import (
     TopoGraph,
@@ -77,7 +77,6 @@ from island_mapping.core.graph import (
     without_loops,
 )
 from island_mapping.core.route import (
-    Command,
     Drive,
     Fix,
     NavigateConfig,
@@ -87,10 +86,6 @@ from island_mapping.core.route import (
     localize_and_dock,
     rotate_to,
 )
-
-Step = Command | None
-"""What the mission yields per scan: a command the explorer answers with, or None: the
-builder side (the builder's own driving or the hall follower) answers."""
 
 
 class Explorer(TripEnds):
