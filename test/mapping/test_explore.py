@@ -5,6 +5,7 @@ Public APIs only: `island_mapping.core.explore`, the builder's managed-mode inpu
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -350,3 +351,29 @@ def test_the_explorers_search_refuses_two_identical_junctions_within_the_window(
             assert found is None and rec.diagnostics.revisit_refusals["look_alike"] >= 1
         else:
             assert found is not None and found.island_id == 0
+
+
+def test_a_look_alike_refusal_keeps_both_fits_as_hypotheses() -> None:
+    """The twins above: the star's points fit both, the recognition is refused (no dock on
+    the spot), and both islands are kept as hypotheses for more evidence (the explorer's
+    rehearsal, `core.explore.rehearse`), each with the robot's pose in its frame and its
+    distance from its estimate; with a recognition that needs more inliers than the fits
+    have, none is kept."""
+    robot_in_island = Pose2D(0.4, 0.2, 0.05)
+    snap = PoseSnapshot(robot_in_island, np.diag([16.0, 16.0, 0.01]), 0.3, 0.1, None, 50.0)
+    pts = _robot_points(T_WALLS, robot_in_island, np.random.default_rng(8))
+    for floor, kept in ((0.85, True), (1.01, False)):
+        revisit = dataclasses.replace(ExplorerConfig().revisit, accept_inlier_fraction=floor)
+        rec = Recognizer(BuilderConfig(revisit=revisit))
+        rec.remember(0, Pose2D(0.0, 0.0, 0.0), np.zeros((3, 3)))
+        rec.remember(1, Pose2D(8.0, 0.0, 0.0), np.zeros((3, 3)))
+        found = rec.recognize(pts, robot_in_island, snap, [_t_island(0), _t_island(1)],
+                              star=True)
+        assert found is None
+        if not kept:
+            assert rec.hypotheses == []
+            continue
+        assert sorted(h.island_id for h in rec.hypotheses) == [0, 1]
+        for h in rec.hypotheses:
+            assert math.hypot(h.pose.x - 0.4, h.pose.y - 0.2) < 0.15
+            assert h.mahalanobis2 is not None

@@ -13,7 +13,6 @@ robot drives back and the explorer rejects. Public APIs: `Explorer.step`, `rehea
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -26,16 +25,13 @@ from island_mapping.conversions import (
     request_to_parameter,
 )
 from island_mapping.core.builder import (
-    BuilderConfig,
     BuilderError,
     BuilderEvent,
     CommandMode,
     EventKind,
     Hypothesis,
     IslandBuilder,
-    PoseSnapshot,
     Recognition,
-    Recognizer,
 )
 from island_mapping.core.builder.held import Held, held_choices
 from island_mapping.core.builder.hooks import BuilderHooks
@@ -241,48 +237,7 @@ def test_walls_the_model_shows_must_have_been_heard() -> None:
     assert heard_through(LineModel(np.array([[0.6, -1.0, 0.6, 1.0]])), origin, through) == 0.0
 
 
-# ----- the builder's side: hypotheses from a look-alike refusal, and which are held -----
-
-T_WALLS = np.array([[-6, -1, 6, -1], [-6, 1, -1, 1], [1, 1, 6, 1], [-1, 1, -1, 6],
-                    [1, 1, 1, 6]], dtype=float)
-"""A T junction in its island's frame (the robot came along the hallway from -x)."""
-
-
-def _t_points(robot: Pose2D, rng: np.random.Generator) -> np.ndarray:
-    """Echoes of the T's walls within 5 m of `robot` (island frame), in the robot's frame."""
-    pts = []
-    for x0, y0, x1, y1 in T_WALLS:
-        t = np.linspace(0.0, 1.0, max(2, int(math.hypot(x1 - x0, y1 - y0) / 0.2)))[:, None]
-        pts.append(np.hstack([x0 + t * (x1 - x0), y0 + t * (y1 - y0)]))
-    p = np.concatenate(pts) + rng.normal(0.0, 0.02, (sum(len(q) for q in pts), 2))
-    p = p[np.hypot(p[:, 0] - robot.x, p[:, 1] - robot.y) <= 5.0]
-    c, s = math.cos(robot.theta), math.sin(robot.theta)
-    d = p - np.array([robot.x, robot.y])
-    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
-
-
-def test_a_look_alike_refusal_keeps_both_fits_as_hypotheses() -> None:
-    """Two identical T junctions 8 m apart within a drifted odometry's window: the star's
-    points fit both, the recognition is refused (no dock on the spot), and both islands are
-    kept as hypotheses, each with the robot's pose in its frame and its distance from its
-    estimate; with a recognition that needs more inliers than the fits have, none is kept."""
-    robot_in_island = Pose2D(0.4, 0.2, 0.05)
-    snap = PoseSnapshot(robot_in_island, np.diag([16.0, 16.0, 0.01]), 0.3, 0.1, None, 50.0)
-    pts = _t_points(robot_in_island, np.random.default_rng(8))
-    islands = [Island(i, LineModel(T_WALLS), ModelType.LINE, 1.0, 0.0) for i in (0, 1)]
-    for floor, kept in ((0.85, True), (1.01, False)):
-        revisit = dataclasses.replace(ExplorerConfig().revisit, accept_inlier_fraction=floor)
-        rec = Recognizer(BuilderConfig(revisit=revisit))
-        rec.remember(0, Pose2D(0.0, 0.0, 0.0), np.zeros((3, 3)))
-        rec.remember(1, Pose2D(8.0, 0.0, 0.0), np.zeros((3, 3)))
-        assert rec.recognize(pts, robot_in_island, snap, islands, star=True) is None
-        if not kept:
-            assert rec.hypotheses == []
-            continue
-        assert sorted(h.island_id for h in rec.hypotheses) == [0, 1]
-        for h in rec.hypotheses:
-            assert math.hypot(h.pose.x - 0.4, h.pose.y - 0.2) < 0.15
-            assert h.mahalanobis2 is not None
+# ----- the builder's side: which hypotheses are held -----
 
 
 def test_the_hypotheses_held_are_those_the_gate_admits_best_first() -> None:
