@@ -141,15 +141,27 @@ def with_distance(rc: RevisitConfig, fit: Recognition, at: Pose2D,
 
 
 def look_alikes(rc: RevisitConfig, best: Recognition, rivals: Sequence[Recognition],
-                spreads: Callable[[int], Sequence[tuple[Pose2D, FloatArray]]], at: Pose2D
-                ) -> list[Recognition]:
+                spreads: Callable[[int], Sequence[tuple[Pose2D, FloatArray]]], at: Pose2D,
+                estimate: Callable[[int], Pose2D]) -> list[Recognition]:
     """The hypotheses of a recognition refused for look-alikes: best and the rivals (each with
     its distance from its estimates, `with_distance`, the robot at odometric pose `at`), when
-    best has the inliers a recognition needs (accept_inlier_fraction); else none."""
+    best has the inliers a recognition needs (accept_inlier_fraction); else none. A rival is
+    one only inside the star's search caps (star_search_max_m, star_search_max_deg) around
+    `estimate` (the robot in its island's frame by odometry): a far look-alike is found at any
+    heading, and in a lattice of corridors a place fits another turned by a quarter (office
+    11 seed 1: a rehearsal of one 11.8 m and 93 deg off confirmed at a neighbour's look-alike
+    turned the same way, a false merge)."""
     if best.inlier_fraction < rc.accept_inlier_fraction:
         return []
-    return [best, *(f if f.mahalanobis2 is not None else with_distance(
-        rc, f, at, spreads(f.island_id)) for f in rivals)]
+    out = [best]
+    for f in rivals:
+        est = estimate(f.island_id)
+        if math.hypot(f.pose.x - est.x, f.pose.y - est.y) > rc.star_search_max_m or abs(
+                wrap_angle(f.pose.theta - est.theta)) > math.radians(rc.star_search_max_deg):
+            continue
+        out.append(f if f.mahalanobis2 is not None else with_distance(
+            rc, f, at, spreads(f.island_id)))
+    return out
 
 
 def rival_window(rc: RevisitConfig, cand: _Candidate, max_dth_rad: float, star: bool) -> _Window:
@@ -161,6 +173,33 @@ def rival_window(rc: RevisitConfig, cand: _Candidate, max_dth_rad: float, star: 
         min(max(rc.search_step_m, radius / rc.star_search_cells), rc.rival_step_m),
         rc.star_max_residual_m if star else rc.max_residual_m,
     )
+
+
+Search = Callable[..., Recognition | None]
+"""`Recognizer._search(island, points, estimate, window, count_refusals)`."""
+
+
+def turned_alias(rc: RevisitConfig, search: Search, cand: _Candidate, best: Recognition,
+                 pts: FloatArray, star: bool) -> bool:
+    """Does the chosen island fit the points as well turned by a quarter or half turn, once
+    its heading uncertainty (rival_sigmas sigmas) exceeds 45 deg? A + junction mapped all
+    round fits itself turned, and a clipped heading window may hold the turned fit. Every
+    turn is tried: odometry's systematic drift outgrows its sigmas."""
+    k = rc.rival_sigmas
+    if k <= 0 or not rc.turned_alias or k * cand.sigma_rad < _ALIAS_MIN_REACH_RAD:
+        return False
+    step = math.radians(rc.heading_step_deg)
+    for turn in _ALIAS_TURNS_RAD:
+        heading = best.pose.theta + turn
+        win = rival_window(rc, cand, _ALIAS_STEPS * step, star)
+        win = dataclasses.replace(win, radius_m=min(win.radius_m, rc.max_dock_m))
+        alias = search(cand.island, pts, Pose2D(best.pose.x, best.pose.y, heading), win,
+                       count_refusals=False)
+        if alias is not None and (
+            alias.inlier_fraction >= best.inlier_fraction - rc.ambiguity_inlier_margin
+        ):
+            return True
+    return False
 
 
 class Recognizer:
@@ -316,21 +355,23 @@ class Recognizer:
             rival = self._rival_fits(candidates, points, at, best.island_id, star)
             rivals = [] if rival is None else [rival]
         if rivals:
-            self.hypotheses = look_alikes(rc, best, rivals, lambda i: self.spreads(i, snap), at)
+            self.hypotheses = look_alikes(rc, best, rivals, lambda i: self.spreads(i, snap), at,
+                                          lambda i: self._estimate(i, snap, at))
             self.diagnostics.refuse(Refusal.LOOK_ALIKE)
             return None
         if best.inlier_fraction < rc.accept_inlier_fraction:  # rivals counted from min_...
             self.diagnostics.refuse(Refusal.INLIERS)
             return None
         chosen = next(c for c in candidates if c.island.id == best.island_id)
-        if self._turned_alias(chosen, best, points, star):
+        if turned_alias(rc, self._search, chosen, best, points, star):
             self.diagnostics.refuse(Refusal.TURNED_ALIAS)
             return None
         far = None if not (rc.clipped_rivals and exceeds_caps(rc, chosen, star)) else (
             fits_elsewhere(self._refine, rc, [i for i in islands if i.id in self._known],
                            points, best, star))
         if far is not None:
-            self.hypotheses = look_alikes(rc, best, [far], lambda i: self.spreads(i, snap), at)
+            self.hypotheses = look_alikes(rc, best, [far], lambda i: self.spreads(i, snap), at,
+                                          lambda i: self._estimate(i, snap, at))
             self.diagnostics.refuse(Refusal.FAR_LOOK_ALIKE)
         return best if far is None else None
 
@@ -382,6 +423,10 @@ class Recognizer:
                 out.append((base.compose(chain.pose), cov))
         return out
 
+    def _estimate(self, island_id: int, snap: PoseSnapshot, at: Pose2D) -> Pose2D:
+        """Odometric pose `at` in island island_id's frame, by its likeliest `estimates`."""
+        return at.relative_to(min(self.estimates(island_id, snap), key=lambda e: e[1])[0])
+
     def _since(self, island_id: int, snap: PoseSnapshot) -> FloatArray:
         """The covariance of the robot's odometric pose now relative to where it was when
         island island_id's origin was last known (odometry axes)."""
@@ -426,29 +471,6 @@ class Recognizer:
             if fit is not None:
                 return fit
         return None
-
-    def _turned_alias(self, cand: _Candidate, best: Recognition, pts: FloatArray,
-                      star: bool) -> bool:
-        """Does the chosen island fit the points as well turned by a quarter or half turn, once
-        its heading uncertainty (rival_sigmas sigmas) exceeds 45 deg? A + junction mapped all
-        round fits itself turned, and a clipped heading window may hold the turned fit. Every
-        turn is tried: odometry's systematic drift outgrows its sigmas."""
-        rc = self.config.revisit
-        k = rc.rival_sigmas
-        if k <= 0 or not rc.turned_alias or k * cand.sigma_rad < _ALIAS_MIN_REACH_RAD:
-            return False
-        step = math.radians(rc.heading_step_deg)
-        for turn in _ALIAS_TURNS_RAD:
-            heading = best.pose.theta + turn
-            win = rival_window(rc, cand, _ALIAS_STEPS * step, star)
-            win = dataclasses.replace(win, radius_m=min(win.radius_m, rc.max_dock_m))
-            alias = self._search(cand.island, pts, Pose2D(best.pose.x, best.pose.y, heading),
-                                 win, count_refusals=False)
-            if alias is not None and (
-                alias.inlier_fraction >= best.inlier_fraction - rc.ambiguity_inlier_margin
-            ):
-                return True
-        return False
 
     def _search(
         self, island: Island, pts: FloatArray, est: Pose2D, win: _Window,
@@ -566,4 +588,4 @@ class Recognizer:
 
 
 __all__ = ["PoseSnapshot", "Recognition", "Recognizer", "exceeds_caps", "fits_elsewhere",
-           "look_alikes", "rival_window", "search_window", "with_distance"]
+           "look_alikes", "rival_window", "search_window", "turned_alias", "with_distance"]
