@@ -35,6 +35,7 @@ from island_mapping.core.builder import (
 )
 from island_mapping.core.builder.held import Held, held_choices
 from island_mapping.core.builder.hooks import BuilderHooks
+from island_mapping.core.builder.recognition import look_alikes
 from island_mapping.core.explore import Confirm, Docked, Explorer, ExplorerConfig, Handover, Reject
 from island_mapping.core.explore.rehearse import heard_through, trial_edges
 from island_mapping.core.graph import TopoGraph
@@ -264,3 +265,23 @@ def test_the_hypotheses_held_are_those_the_gate_admits_best_first() -> None:
     assert math.isclose(now.pose.x, 1.0, abs_tol=1e-9) and math.isclose(now.pose.y, 0.2)
     with pytest.raises(BuilderError, match="island 5 is not a hypothesis"):
         h.choice(5)
+
+
+def test_a_far_look_alike_turned_by_a_quarter_is_no_hypothesis() -> None:
+    """office 11 seed 1: a rival found near its own origin at any heading, 93 deg from where
+    odometry puts the robot in its frame, was rehearsed and confirmed at a turned look-alike of
+    its neighbour. Rivals are hypotheses only inside the star's caps around their estimate;
+    none at all when the best fit has too few inliers."""
+    rc = ExplorerConfig().revisit
+    best = Recognition(1, Pose2D(0.2, 0.0, 0.0), 0.05, 0.95, 2.0)
+    near = Recognition(2, Pose2D(0.1, 0.1, math.radians(20.0)), 0.05, 0.93, 3.0)
+    turned = Recognition(3, Pose2D(0.1, 0.1, math.radians(93.0)), 0.05, 0.93, 3.0)
+    far = Recognition(4, Pose2D(0.1, 0.1, 0.0), 0.05, 0.93, 3.0)
+    estimates = {2: Pose2D(1.0, -2.0, 0.0), 3: Pose2D(0.5, 0.0, 0.0),
+                 4: Pose2D(rc.star_search_max_m + 1.0, 0.0, 0.0)}
+    got = look_alikes(rc, best, [near, turned, far], lambda i: [], Pose2D(0.0, 0.0, 0.0),
+                      estimates.__getitem__)
+    assert [h.island_id for h in got] == [1, 2]
+    weak = Recognition(1, best.pose, 0.05, rc.accept_inlier_fraction - 0.05, 2.0)
+    assert look_alikes(rc, weak, [near], lambda i: [], Pose2D(0.0, 0.0, 0.0),
+                       estimates.__getitem__) == []
