@@ -36,7 +36,15 @@ from island_mapping.core.builder import (
 from island_mapping.core.builder.held import Held, held_choices
 from island_mapping.core.builder.hooks import BuilderHooks
 from island_mapping.core.builder.recognition import look_alikes
-from island_mapping.core.explore import Confirm, Docked, Explorer, ExplorerConfig, Handover, Reject
+from island_mapping.core.explore import (
+    Confirm,
+    Docked,
+    Explorer,
+    ExplorerConfig,
+    Handover,
+    Reject,
+    explorer_hooks,
+)
 from island_mapping.core.explore.rehearse import heard_through, trial_edges
 from island_mapping.core.graph import TopoGraph
 from island_mapping.core.route import Sense
@@ -128,7 +136,7 @@ def _rehearse_from(stop_at: Pose2D) -> tuple[list[object], SimBody]:
     stood at the western T). The explorer's requests until it confirms or rejects, and the
     robot."""
     body = SimBody(EAST_END)
-    ex = Explorer(ExplorerConfig())
+    ex = Explorer(ExplorerConfig(rehearse_hypotheses=2))
     ex.on_graph(_map())
     ex.on_events([BuilderEvent(EventKind.HANDED_BACK, 0.0, EAST_END, 0.1, anchor_odom=EAST_END,
                                accepted_island_id=2)])
@@ -195,6 +203,11 @@ def test_the_rehearsal_drives_the_shortest_edges_not_back_where_it_came_from() -
 
 
 def test_confirm_and_reject_need_a_held_decision() -> None:
+    """Off by default (stars are decided on the spot); the explorer's setting reaches the
+    builder's hooks; answers without a held decision are refused by name."""
+    assert explorer_hooks(ExplorerConfig(), TopoGraph).hold_hypotheses == 0
+    on = ExplorerConfig(rehearse_hypotheses=2)
+    assert explorer_hooks(on, TopoGraph).hold_hypotheses == 2
     builder = IslandBuilder(hooks=BuilderHooks(managed=True, hold_hypotheses=2))
     with pytest.raises(BuilderError, match="confirm: no decision is held"):
         builder.confirm(0)
