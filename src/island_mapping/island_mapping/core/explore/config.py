@@ -313,10 +313,15 @@ class ExplorerConfig:
                           "22, for what it closes and the false merges it made) [-]"},
     )
     rehearse_edges: int = field(
-        default=2,
+        default=3,
         metadata={"help": "a rehearsal tries at most this many of the island's edges, shortest "
                           "first, docking at the island again between them (an edge replay "
                           "that ends off its neighbour says little of where the robot was) [-]"},
+    )
+    rehearse_neighbours: int = field(
+        default=2,
+        metadata={"help": "a rehearsal confirms once this many of the island's neighbours were "
+                          "found at the ends of its edges (all of them where it has fewer) [-]"},
     )
     rehearse_max_shift_m: float = field(
         default=1.0,
@@ -420,7 +425,8 @@ class ExplorerConfig:
         _check_numbers(self, ("side_min_width_m", "side_near_island_m", "side_merge_m",
                               "side_merge_deg", "side_chain_m", "side_search_m"),
                        ("side_max_turn_deg", "side_direct_m", "failed_edge_penalty_m"))
-        for name in ("retries_per_exit", "rehearse_hypotheses", "rehearse_edges"):
+        for name in ("retries_per_exit", "rehearse_hypotheses", "rehearse_edges",
+                     "rehearse_neighbours"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 raise ExploreError(f"ExplorerConfig.{name}: expected an int >= 0, got {v!r}")
