@@ -31,11 +31,9 @@ import numpy as np
 from island_msgs_py.raycast import raycast
 from island_msgs_py.types import (
     ControlStrategy,
-    FloatArray,
     Island,
     LineModel,
     Pose2D,
-    wrap_angle,
 )
 
 from island_mapping.core.builder import Hypothesis
@@ -46,13 +44,12 @@ from island_mapping.core.route import (
     Drive,
     Fix,
     RouteTimeoutError,
-    Sense,
     execute_strategy,
     go_to,
     localize_and_dock,
-    step,
 )
 from island_mapping.core.route.arrival import FixHook
+from island_mapping.core.route.motion import Scan, look_scans
 
 # A wall the model puts within this range of the robot [m], met by a beam's axis within this of
 # head-on [deg], echoes (the ring's cones return an echo up to 30 deg off the normal); an echo
@@ -71,8 +68,6 @@ THROUGH_MARGIN_M = 0.3
 # (the twin-T test: 0.75 m after three rounds).
 DOCKED_M = 0.3
 
-Scan = tuple[Pose2D, FloatArray, FloatArray]
-"""One scan of a look: the odometric pose, the ranges [m] (inf: no echo), their angles [rad]."""
 
 
 @dataclass(frozen=True)
@@ -186,25 +181,6 @@ def _found(d: Drive, island: Island, fix: Fix, cfg: ExplorerConfig
         return False
     scans = yield from look_scans(d)
     return heard_through(island.model, fix.origin_odom, scans) <= cfg.rehearse_through
-
-
-def _scan(sense: Sense) -> Scan:
-    return sense.odom, np.asarray(sense.ranges_m, dtype=np.float64), np.asarray(
-        sense.angles_rad, dtype=np.float64)
-
-
-def look_scans(d: Drive) -> Generator[Command, None, list[Scan]]:
-    """Turn once in place keeping every scan whole (`heard_through` needs the beams that
-    heard nothing, which a look's echo points leave out)."""
-    scans = [_scan(d.sense)]
-    done, last = 0.0, d.sense.odom.theta
-    while done < 2.0 * math.pi:
-        yield from step(d, 0.0, d.cfg.turn_rate_radps)
-        done += wrap_angle(d.sense.odom.theta - last)
-        last = d.sense.odom.theta
-        scans.append(_scan(d.sense))
-    yield from step(d, 0.0, 0.0)
-    return scans
 
 
 def heard_through(model: LineModel, origin_odom: Pose2D, scans: list[Scan]) -> float:

@@ -351,16 +351,32 @@ def center_on_doorway(d: Drive, side: int) -> Motion:
     yield from go_to(d, base.compose(Pose2D(goal, 0.0, 0.0)))
 
 
-def look_around(d: Drive) -> Generator[Command, None, FloatArray]:
-    """Turn once in place collecting echoes; returns them in the final robot frame, (N, 2) [m]."""
-    pts = [d.sense.points_odom()]
+Scan = tuple[Pose2D, FloatArray, FloatArray]
+"""One scan of a look: the odometric pose, the ranges [m] (inf: no echo), their angles [rad]."""
+
+
+def look_scans(d: Drive) -> Generator[Command, None, list[Scan]]:
+    """Turn once in place keeping every scan whole (the beams that heard nothing too)."""
+    scans = [_scan(d.sense)]
     done, last = 0.0, d.sense.odom.theta
     while done < 2.0 * math.pi:
         yield from step(d, 0.0, d.cfg.turn_rate_radps)
         th = d.sense.odom.theta
         done += wrap_angle(th - last)
         last = th
-        pts.append(d.sense.points_odom())
+        scans.append(_scan(d.sense))
     yield from step(d, 0.0, 0.0)
+    return scans
+
+
+def _scan(sense: Sense) -> Scan:
+    return sense.odom, np.asarray(sense.ranges_m, dtype=np.float64), np.asarray(
+        sense.angles_rad, dtype=np.float64)
+
+
+def look_around(d: Drive) -> Generator[Command, None, FloatArray]:
+    """Turn once in place collecting echoes; returns them in the final robot frame, (N, 2) [m]."""
+    scans = yield from look_scans(d)
+    pts = [ranges_to_points(r, a, o) for o, r, a in scans]
     return to_frame(np.concatenate(pts, axis=0), d.sense.odom)
 
