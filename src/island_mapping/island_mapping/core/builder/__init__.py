@@ -9,6 +9,8 @@ Pure decision logic (numpy only, no ROS). Modules, each one job:
 - `checks`: the localization check and registrations onto a model;
 - `recognition`: the Recognizer of known islands (revisits) and its link graph (`links`), with
   the correlative place search (`places`) as a strategy for a lost robot;
+- `calibration`: the odometry's systematic heading error (rotation scale, curvature), learnt
+  online from docks and revisits; `known`: the known origins, kept in its corrected frame;
 - `uncertainty`: the full covariance of the robot's pose relative to a known island's origin
   (loop-closure candidates and the gate's Mahalanobis distance);
 - `follow`: when an attempt may start while the follower drives;
@@ -21,6 +23,12 @@ Pure decision logic (numpy only, no ROS). Modules, each one job:
   stamp pairer (`island_msgs_py.stamps.ScanOdomPairer`, every_odometry) released.
 """
 
+from island_mapping.core.builder.calibration import (
+    CalibrationConfig,
+    Mark,
+    Measurement,
+    OdometryCalibration,
+)
 from island_mapping.core.builder.checks import leg_heading, localizes_back, register_look
 from island_mapping.core.builder.config import (
     BuilderConfig,
@@ -68,6 +76,7 @@ __all__ = [
     "BuilderError",
     "BuilderEvent",
     "BuilderInputs",
+    "CalibrationConfig",
     "CommandMode",
     "CoreMeasures",
     "Diagnostics",
@@ -78,7 +87,10 @@ __all__ = [
     "Hypothesis",
     "IslandBuilder",
     "IslandRun",
+    "Mark",
+    "Measurement",
     "Measures",
+    "OdometryCalibration",
     "PassiveBuilder",
     "PassiveConfig",
     "PathRecord",

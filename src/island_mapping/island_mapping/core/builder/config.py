@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 from island_msgs_py.types import ModelType
 
+from island_mapping.core.builder.calibration import CalibrationConfig
 from island_mapping.core.builder.errors import BuilderError
 from island_mapping.core.builder.errors import check_numbers as _check
 
@@ -329,6 +330,11 @@ class BuilderConfig:
     )
     star: StarConfig = field(
         default_factory=StarConfig, metadata={"help": "the four-corner star routine"}
+    )
+    calibration: CalibrationConfig = field(
+        default_factory=CalibrationConfig,
+        metadata={"help": "the odometry's systematic heading error, learnt from docks "
+                          "(core.builder.calibration)"},
     )
     opening: OpeningConfig = field(
         default_factory=OpeningConfig,

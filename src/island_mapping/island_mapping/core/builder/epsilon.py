@@ -17,6 +17,7 @@ import numpy as np
 from island_msgs_py.geometry import relative_poses
 from island_msgs_py.types import FloatArray, LineModel, ModelType, Pose2D, wrap_angle
 
+from island_mapping.core.builder.calibration import OdometryCalibration
 from island_mapping.core.builder.config import BuilderConfig, BuilderError
 from island_mapping.core.lines import fit_lines
 from island_mapping.core.measure import evaluate_models
@@ -82,9 +83,10 @@ class OdometryTrack:
     since the last island's origin (`rel`, eq. 3's epsilon) and since an attempt's anchor
     (`star`, while an attempt is under way)."""
 
-    def __init__(self) -> None:
+    def __init__(self, calibration: OdometryCalibration | None = None) -> None:
         self.pose: Pose2D | None = None
         self.cov = np.zeros((3, 3))
+        self.calibration = calibration  # fed every pose (core.builder.calibration)
         self.rel = RelativeCovariance()
         self.star: RelativeCovariance | None = None
 
@@ -93,6 +95,8 @@ class OdometryTrack:
         moved = 0.0 if self.pose is None else math.hypot(pose.x - self.pose.x,
                                                          pose.y - self.pose.y)
         self.pose, self.cov = pose, cov
+        if self.calibration is not None:
+            self.calibration.update(pose)
         self.rel.update(pose, cov)
         if self.star is not None:
             self.star.update(pose, cov)

@@ -96,7 +96,7 @@ class IslandBuilder(ManagedInputs):
         self.diagnostics = Diagnostics()
         self.recognizer = Recognizer(self.config, self.diagnostics)
         self._state = State.WAITING
-        self._track = OdometryTrack()
+        self._track = OdometryTrack(self.recognizer.calibration)
         self._truth: Pose2D | None = None
         self._last_scan: tuple[FloatArray, FloatArray] | None = None
         self._path_m = 0.0  # odometric path length while following [m]

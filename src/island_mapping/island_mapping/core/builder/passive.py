@@ -235,7 +235,8 @@ class PassiveBuilder:
         self._decided = 0  # scans decided
         self._odom: FloatArray | None = None
         self._odometry: list[tuple[Pose2D, FloatArray]] = []  # messages since the last scan
-        self._track = OdometryTrack()  # epsilon (eq. 3), advanced as scans are decided
+        # epsilon (eq. 3), advanced as scans are decided; it feeds the calibration
+        self._track = OdometryTrack(self.recognizer.calibration)
         self._current, self._pose = -1, np.zeros(3)  # the island tracked, the pose in it
         self._next_attempt = 0
         self._scan_island: list[int] = []

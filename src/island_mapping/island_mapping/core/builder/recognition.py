@@ -22,11 +22,13 @@ import numpy as np
 from island_msgs_py.geometry import relative_poses
 from island_msgs_py.types import FloatArray, Island, Pose2D, wrap_angle
 
+from island_mapping.core.builder.calibration import OdometryCalibration
 from island_mapping.core.builder.checks import localizes_back
 from island_mapping.core.builder.config import BuilderConfig
 from island_mapping.core.builder.diagnostics import Diagnostics, Refusal
 from island_mapping.core.builder.geometry import drive_clear, from_frame, to_frame
 from island_mapping.core.builder.inlier_field import InlierField
+from island_mapping.core.builder.known import KnownOrigins
 from island_mapping.core.builder.links import Link, LinkGraph
 from island_mapping.core.builder.places import PlaceSearch
 from island_mapping.core.builder.recognized import PoseSnapshot, Recognition
@@ -208,9 +210,8 @@ class Recognizer:
     def __init__(self, config: BuilderConfig, diagnostics: Diagnostics | None = None) -> None:
         self.config = config
         self.diagnostics = diagnostics if diagnostics is not None else Diagnostics()
-        self._known: dict[int, tuple[Pose2D, FloatArray]] = {}
-        # Where the robot was (odometry) when each island's covariance was taken.
-        self._cov_at: dict[int, Pose2D] = {}
+        self.calibration = OdometryCalibration(config.calibration)
+        self._known = KnownOrigins(self.calibration)
         self._places: dict[int, PlaceSearch] = {}
         # the inlier tests of the islands searched last (most recent last; bounded memory)
         self._fields: OrderedDict[int, InlierField] = OrderedDict()
@@ -223,9 +224,9 @@ class Recognizer:
                  cov_at: Pose2D | None = None) -> None:
         """Island island_id's origin is at origin_odom in the odometry frame now, with the
         odometry's covariance odom_cov (3x3) taken at odometric pose cov_at (default: at
-        the origin; a star's anchor, a few metres off, for a new island)."""
-        self._known[island_id] = (origin_odom, odom_cov)
-        self._cov_at[island_id] = origin_odom if cov_at is None else cov_at
+        the origin; a star's anchor, a few metres off, for a new island). Localized at a
+        known island again, the calibration learns from where it was predicted."""
+        self._known.remember(island_id, origin_odom, odom_cov, cov_at)
 
     def known(self, island_id: int) -> tuple[Pose2D, FloatArray] | None:
         """(origin in the odometry frame, odometry covariance then) as last known, or None."""
@@ -241,7 +242,8 @@ class Recognizer:
         an (x, y, theta) row)."""
         here = np.array([odom.x, odom.y, odom.theta])
         out = []
-        for iid, (origin, _) in self._known.items():
+        for iid in self._known:
+            origin = self._known.origin(iid)
             est = relative_poses(np.array([origin.x, origin.y, origin.theta]), here)[0]
             dist = math.hypot(est[0], est[1])
             if dist <= radius_m:
@@ -270,7 +272,7 @@ class Recognizer:
              sigma_rad: float) -> None:
         """Remember where b's origin lies in a's frame (the odometry since a's origin), with
         position and heading sigmas; a must be known."""
-        t_ab = origin_b_odom.relative_to(self._known[a][0])
+        t_ab = origin_b_odom.relative_to(self._known.origin(a))
         self.links.add(a, b, Link(t_ab, sigma_m, sigma_rad))
 
     # ----- the search -----
@@ -380,21 +382,22 @@ class Recognizer:
         [m], heading sigma [rad]), from its last known odometric pose (the odometry's drift
         since) and, when links join it to the last island, through the chain of links with the
         smallest summed sigma (epsilon plus the chain's error)."""
-        origin, cov0 = self._known[island_id]
+        origin, cov0 = self._known.origin(island_id), self._known.cov(island_id)
         grow = snap.odom_cov - cov0
+        sys_var = self._known.residual_var(island_id)
         w_xy = np.linalg.eigvalsh(0.5 * (grow[:2, :2] + grow[:2, :2].T))
         out = [
             (
                 origin,
                 max(snap.epsilon_m, math.sqrt(max(float(w_xy[-1]), 0.0))),
-                math.sqrt(max(float(grow[2, 2]), 0.0)),
+                math.sqrt(max(float(grow[2, 2]), 0.0) + sys_var),
             )
         ]
         last = snap.last_island_id
         if last is not None and last in self._known and last != island_id:
             chain = self.links.chain(last, island_id)
             if chain is not None:
-                base = self._known[last][0]
+                base = self._known.origin(last)
                 sig_rel_th = snap.heading_sigma_rad
                 # The robot's own heading error since the last island turns the whole chain.
                 reach = math.hypot(chain.pose.x, chain.pose.y)
@@ -410,13 +413,15 @@ class Recognizer:
         it (`uncertainty.relative_covariance`). Through the links: the robot's relative
         covariance since the last island's origin, and the chain's sigmas (isotropic in
         position: a link keeps the sigmas it was measured with)."""
-        origin, _ = self._known[island_id]
-        out = [(origin, in_frame(self._since(island_id, snap), origin.theta))]
+        origin = self._known.origin(island_id)
+        since = self._since(island_id, snap)
+        since[2, 2] += self._known.residual_var(island_id)
+        out = [(origin, in_frame(since, origin.theta))]
         last = snap.last_island_id
         if last is not None and last in self._known and last != island_id:
             chain = self.links.chain(last, island_id)
             if chain is not None:
-                base = self._known[last][0]
+                base = self._known.origin(last)
                 robot = in_frame(self._since(last, snap), base.theta)
                 link = np.diag([chain.sigma_m ** 2, chain.sigma_m ** 2, chain.sigma_rad ** 2])
                 cov = between_covariance(chain.pose, link, snap.odom.relative_to(base), robot)
@@ -430,16 +435,16 @@ class Recognizer:
     def _since(self, island_id: int, snap: PoseSnapshot) -> FloatArray:
         """The covariance of the robot's odometric pose now relative to where it was when
         island island_id's origin was last known (odometry axes)."""
-        _, cov0 = self._known[island_id]
-        at = self._cov_at.get(island_id, self._known[island_id][0])
-        return relative_covariance(at, cov0, snap.odom, snap.odom_cov)
+        k = self._known
+        return relative_covariance(k.cov_at(island_id), k.cov(island_id), snap.odom,
+                                   snap.odom_cov)
 
     def _candidates(self, snap: PoseSnapshot, islands: Sequence[Island]) -> Iterator[_Candidate]:
         """Known islands a recognition may match, with their best odometric origin estimate
         and its sigmas: not the island just left."""
         by_id = {i.id: i for i in islands}
         just_left = snap.path_since_island_m < self.config.revisit.min_loop_m
-        for iid in sorted(self._known):
+        for iid in self._known:
             island = by_id.get(iid)
             if island is None or len(island.model) == 0:
                 continue

@@ -54,6 +54,11 @@ class BuilderView:
         return self.diagnostics.counts
 
     @property
+    def calibration(self) -> dict[str, float | int]:
+        """The odometry calibration's estimate, sigmas and measurements used / refused."""
+        return self.ledger.recognizer.calibration.summary()
+
+    @property
     def revisit_refusals(self) -> dict[str, int]:
         """Why revisit hypotheses were refused: reason -> count."""
         return self.diagnostics.revisit_refusals
