@@ -58,6 +58,11 @@ class StarConfig:
     turn_rate_radps: float = field(
         default=0.8, metadata={"help": "largest turn rate when rotating in place [rad/s]"}
     )
+    unwind_turns: bool = field(
+        default=True,
+        metadata={"help": "a star's legs and a look's circle turn the way that undoes the "
+                          "robot's net turning so far (else always left) [bool]"},
+    )
     heading_gain_per_s: float = field(
         default=2.0, metadata={"help": "proportional gain of heading control [1/s]"}
     )

@@ -87,6 +87,7 @@ class OdometryTrack:
         self.pose: Pose2D | None = None
         self.cov = np.zeros((3, 3))
         self.calibration = calibration  # fed every pose (core.builder.calibration)
+        self.turned_rad = 0.0  # signed odometric turn since the first pose [rad]
         self.rel = RelativeCovariance()
         self.star: RelativeCovariance | None = None
 
@@ -94,6 +95,8 @@ class OdometryTrack:
         """Feed one odometry message; the distance moved since the previous one [m]."""
         moved = 0.0 if self.pose is None else math.hypot(pose.x - self.pose.x,
                                                          pose.y - self.pose.y)
+        if self.pose is not None:
+            self.turned_rad += wrap_angle(pose.theta - self.pose.theta)
         self.pose, self.cov = pose, cov
         if self.calibration is not None:
             self.calibration.update(pose)
@@ -101,6 +104,12 @@ class OdometryTrack:
         if self.star is not None:
             self.star.update(pose, cov)
         return moved
+
+    def unwind_sign(self, enabled: bool = True) -> float:
+        """+1 (turn left) or -1 (right): the way a full turn undoes the net turning so far
+        (always +1 when not enabled). A wheelbase error turns every odometric rotation by the
+        same fraction, so turns that cancel keep its heading error from growing."""
+        return -1.0 if enabled and self.turned_rad > 0.0 else 1.0
 
     def anchor_star(self) -> None:
         """An attempt starts at the latest pose: the star's own error restarts from 0."""

@@ -30,6 +30,8 @@ STOP: Twist = (0.0, 0.0)
 
 # Leg bearings in the origin frame: ahead, left, behind, right [rad].
 LEG_BEARINGS_RAD = (0.0, 0.5 * math.pi, math.pi, -0.5 * math.pi)
+# The same legs turning right: ahead, right, behind, left.
+LEG_BEARINGS_RIGHT_RAD = (0.0, -0.5 * math.pi, math.pi, 0.5 * math.pi)
 
 # Turn in place first when the way to a target is this far off the heading [rad].
 _AIM_TOL_RAD = math.radians(10.0)
@@ -63,6 +65,7 @@ class Look:
     turned_rad: float = field(default=0.0, kw_only=True)
     prev_theta: float = field(default=0.0, kw_only=True)
     points: list[FloatArray] = field(default_factory=list, kw_only=True)  # odometry frame [m]
+    turn_sign: float = field(default=1.0, kw_only=True)  # +1 the circle turns left, -1 right
 
 
 class StallWatch:
@@ -194,7 +197,7 @@ def look_step(look: Look, theta_rad: float, sc: StarConfig) -> Twist | None:
     look.turned_rad += abs(wrap_angle(theta_rad - look.prev_theta))
     look.prev_theta = theta_rad
     if look.turned_rad < 2.0 * math.pi:
-        return 0.0, sc.turn_rate_radps
+        return 0.0, look.turn_sign * sc.turn_rate_radps
     return None
 
 

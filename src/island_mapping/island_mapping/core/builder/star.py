@@ -33,6 +33,7 @@ from island_mapping.core.builder.events import EventKind
 from island_mapping.core.builder.geometry import concat, drive_clear, from_frame, to_frame
 from island_mapping.core.builder.motion import (
     LEG_BEARINGS_RAD,
+    LEG_BEARINGS_RIGHT_RAD,
     STOP,
     LegPhase,
     Look,
@@ -86,6 +87,7 @@ class Attempt:
     look_ends: list[FloatArray] = field(default_factory=list)
     look_ranges: list[FloatArray] = field(default_factory=list)
     leg: int = 0
+    turn_sign: float = 1.0  # +1 the legs (and looks) turn left, -1 right
     phase: LegPhase = LegPhase.TURN
     leg_length_m: float = 0.0
     legs_done: list[tuple[float, float]] = field(default_factory=list)
@@ -199,7 +201,8 @@ def star_step(
     m: Measures, att: Attempt, odom: Pose2D, ahead_free_m: float,
     odom_heading_var_rad2: float | None, stalled: bool = False,
 ) -> tuple[Twist, Verdict]:
-    """One step of the four legs (ahead, left, behind, right): turn to the leg's bearing,
+    """One step of the four legs (ahead, left, behind, right; or ahead, right, behind, left
+    when the attempt turns right): turn to the leg's bearing,
     drive out (shortened to the free range ahead minus the clearance; skipped if too short),
     register the leg and evaluate the attempt, reverse back to the centre. odom: the odometric
     pose; ahead_free_m: nearest echo ahead [m]; odom_heading_var_rad2: odometry's heading
@@ -207,8 +210,9 @@ def star_step(
     progress (the robot touches a wall): a turn skips its leg, a leg or its way back ends
     where the robot is."""
     sc = m.cfg.star
-    while att.leg < len(LEG_BEARINGS_RAD):
-        bearing = LEG_BEARINGS_RAD[att.leg]
+    bearings = LEG_BEARINGS_RAD if att.turn_sign > 0 else LEG_BEARINGS_RIGHT_RAD
+    while att.leg < len(bearings):
+        bearing = bearings[att.leg]
         if att.phase is LegPhase.TURN:
             cmd = turn_to(odom.relative_to(att.anchor), bearing, sc)
             if cmd is not None and not stalled:
@@ -511,6 +515,7 @@ def probe_step(m: Measures, att: Attempt, odom: Pose2D, ahead_free_m: float,
     pr, sc = att.probe, m.cfg.star
     assert pr is not None
     rel = odom.relative_to(att.anchor.compose(pr.shift))  # robot in the candidate's frame
+    pr.turn_sign = att.turn_sign
     cmd = look_around(pr, rel, math.radians(sc.heading_tol_deg), odom.theta, ahead_free_m, sc)
     if cmd is not None:
         return cmd

@@ -39,6 +39,11 @@ class NavigateConfig:
     turn_rate_radps: float = field(
         default=0.6, metadata={"help": "largest turn rate of Rot steps and docking [rad/s]"}
     )
+    unwind_turns: bool = field(
+        default=True,
+        metadata={"help": "a look's circle turns the way that undoes the net turning of the "
+                          "looks and drives so far (else always left) [bool]"},
+    )
     k_heading_per_s: float = field(
         default=2.0, metadata={"help": "turn rate per radian of heading error [1/s]"}
     )

@@ -106,6 +106,7 @@ class Drive:
     deadline_s: float = math.inf  # RouteTimeoutError past this time [s]
     # The echoes of the last _RECENT_SCANS scans, odometry frame, (K, 2) each [m].
     recent: deque[FloatArray] = field(default_factory=lambda: deque(maxlen=_RECENT_SCANS))
+    turned_rad: float = 0.0  # signed odometric turn during the steps driven so far [rad]
 
     def recent_points(self) -> FloatArray:
         """The remembered echoes in the robot's frame now, (K, 2) [m]."""
@@ -118,7 +119,9 @@ def step(d: Drive, v_mps: float, w_radps: float) -> Generator[Command, None, boo
     """One sensor period under (v, w); returns whether an obstacle stopped the motion."""
     if d.sense.t_s > d.deadline_s:
         raise RouteTimeoutError()
+    before = d.sense.odom.theta
     yield (v_mps, w_radps)
+    d.turned_rad += wrap_angle(d.sense.odom.theta - before)
     d.recent.append(d.sense.points_odom())
     return d.sense.blocked
 
@@ -356,13 +359,16 @@ Scan = tuple[Pose2D, FloatArray, FloatArray]
 
 
 def look_scans(d: Drive) -> Generator[Command, None, list[Scan]]:
-    """Turn once in place keeping every scan whole (the beams that heard nothing too)."""
+    """Turn once in place keeping every scan whole (the beams that heard nothing too); the
+    way that undoes the net turning of the looks and drives so far (`Drive.turned_rad`),
+    with cfg.unwind_turns, else left."""
     scans = [_scan(d.sense)]
     done, last = 0.0, d.sense.odom.theta
+    sign = -1.0 if d.cfg.unwind_turns and d.turned_rad > 0.0 else 1.0
     while done < 2.0 * math.pi:
-        yield from step(d, 0.0, d.cfg.turn_rate_radps)
+        yield from step(d, 0.0, sign * d.cfg.turn_rate_radps)
         th = d.sense.odom.theta
-        done += wrap_angle(th - last)
+        done += sign * wrap_angle(th - last)
         last = th
         scans.append(_scan(d.sense))
     yield from step(d, 0.0, 0.0)
