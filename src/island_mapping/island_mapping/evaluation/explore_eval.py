@@ -11,12 +11,13 @@ the exploration ended by itself. Deterministic for a seed.
 
 from __future__ import annotations
 
+import math
 import time
 from enum import StrEnum
 from typing import Any
 
 import numpy as np
-from island_msgs_py.types import Pose2D
+from island_msgs_py.types import Pose2D, wrap_angle
 from island_sim.core.places import world_places
 from island_sim.core.world_loader import load_world
 
@@ -61,13 +62,25 @@ def _plain(setup: SimSetup, sim_s: float, rng: np.random.Generator, start: Pose2
     return res.graph(), events, dict(res.origins_odom), extra
 
 
+def _heading_drift(truth: np.ndarray, odom: np.ndarray) -> dict[str, float]:
+    """The odometry's heading error at the end of the run and the robot's net turn [deg]."""
+    if len(truth) < 2:
+        return {"odom_heading_error_deg": 0.0, "net_turn_deg": 0.0}
+    err = wrap_angle(float(odom[-1, 2] - truth[-1, 2] - (odom[0, 2] - truth[0, 2])))
+    turn = float(np.sum(np.angle(np.exp(1j * np.diff(truth[:, 2])))))
+    return {"odom_heading_error_deg": round(math.degrees(err), 1),
+            "net_turn_deg": round(math.degrees(turn))}
+
+
 def _exits(setup: SimSetup, sim_s: float, rng: np.random.Generator, start: Pose2D | None
            ) -> tuple[TopoGraph, list[dict[str, Any]], dict[int, Pose2D], dict[str, Any]]:
     run = explore_by_exits(setup, sim_s, rng=rng, start=start)
     extra = {"wall_contacts": run.collisions, "ended_by_itself": run.done,
              "sim_seconds": round(run.sim_seconds, 1), "false_arrivals": run.false_arrivals,
              "arrivals": len(run.arrivals), "explorer": run.explorer_counts,
-             "unanswered_scans": run.unanswered_scans,
+             "unanswered_scans": run.unanswered_scans, "calibration": run.calibration,
+             "revisit_refusals": run.revisit_refusals,
+             **_heading_drift(run.truth_path, run.odom_path),
              "exits_left": sum(e.state.value == "unexplored" for i in run.graph.islands()
                                for e in i.exits)}
     return run.graph, run.events, dict(run.origins_odom), extra

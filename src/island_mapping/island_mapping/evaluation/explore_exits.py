@@ -89,6 +89,7 @@ class ExitsRun:
     contacts: list[tuple[float, float, float, str]] = field(default_factory=list)
     revisit_refusals: dict[str, int] = field(default_factory=dict)
     origins_odom: dict[int, Pose2D] = field(default_factory=dict)
+    calibration: dict[str, float | int] = field(default_factory=dict)
 
     @property
     def false_arrivals(self) -> int:
@@ -212,7 +213,7 @@ def explore_by_exits(
     return ExitsRun(graph, events, np.array(truth).reshape(-1, 3), np.array(odom).reshape(-1, 3),
                     robot.collisions, judge.checks, dict(explorer.counts), explorer.done,
                     robot.time_s, unanswered, contacts, dict(builder.revisit_refusals),
-                    dict(builder.island_origins_odom))
+                    dict(builder.island_origins_odom), builder.calibration)
 
 
 def _record(new: tuple[BuilderEvent, ...], graph: TopoGraph, truth: Pose2D,
