@@ -242,6 +242,11 @@ def test_held_decisions_and_their_answers_cross_the_wire() -> None:
     back = msg_to_decision(decision_to_msg(125, CommandMode.IDLE, (event,)))
     assert back.events[0].kind is EventKind.REVISIT_HYPOTHESIS
     assert back.events[0].hypotheses == (hyp,)
+    # a confirmed hypothesis: the pose in the island as the held star saw it, and when
+    linked = BuilderEvent(EventKind.ISLAND_REVISITED, 40.0, Pose2D(5.0, 2.0, 0.5), 0.4,
+                          revisited_island_id=3, island_pose=hyp.pose, island_pose_t_s=12.5)
+    again = msg_to_decision(decision_to_msg(126, CommandMode.IDLE, (linked,))).events[0]
+    assert (again.island_pose, again.island_pose_t_s) == (hyp.pose, 12.5)
     bad = String(data=decision_to_msg(1, CommandMode.IDLE, (event,)).data.replace(
         '"island": 3', '"island": -3'))
     with pytest.raises(ExplorerMessageError, match=r"hypotheses\[0\].island"):

@@ -110,8 +110,8 @@ def event_from_dict(d: Any, path: str = "event") -> BuilderEvent:
     """A builder event from its JSON form (`event_to_dict`), checked field by field."""
     keys = {"kind", "t_s", "odom_pose", "epsilon_m", "measure", "bound", "legs_m", "partial",
             "anchor_odom", "island", "edge", "accepted_island_id", "reason",
-            "revisited_island_id", "island_pose", "residual_m", "exit_updates", "truth_pose",
-            "hypotheses"}
+            "revisited_island_id", "island_pose", "island_pose_t_s", "residual_m",
+            "exit_updates", "truth_pose", "hypotheses"}
     obj = jc.obj(d, path, keys, {"kind", "t_s", "odom_pose", "epsilon_m"})
     updates = obj.get("exit_updates") or []
     return BuilderEvent(
@@ -125,6 +125,7 @@ def event_from_dict(d: Any, path: str = "event") -> BuilderEvent:
         accepted_island_id=_opt(obj, "accepted_island_id", jc.island_id, path),
         revisited_island_id=_opt(obj, "revisited_island_id", jc.island_id, path),
         island_pose=_opt(obj, "island_pose", json_io.pose_from_dict, path),
+        island_pose_t_s=_opt(obj, "island_pose_t_s", jc.float_, path),
         exit_updates=tuple(json_io.exit_update_from_dict(u, f"{path}.exit_updates[{k}]")
                            for k, u in enumerate(jc.list_(updates, f"{path}.exit_updates"))),
         hypotheses=tuple(_hypothesis(h, f"{path}.hypotheses[{k}]") for k, h in enumerate(

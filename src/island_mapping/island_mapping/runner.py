@@ -17,6 +17,7 @@ with `ros2 run`; this module only creates them with parameter overrides and spin
 
 from __future__ import annotations
 
+import bisect
 import json
 import os
 import random
@@ -182,7 +183,12 @@ class _Observer(Node):
             self.get_logger().warn("builder event is not JSON; ignored")
             return
         if self.truth:  # where the robot really was (evaluation and figures only)
-            event["truth_pose"] = dict(zip(("x", "y", "theta"), self.truth[-1][1:], strict=True))
+            at = self.truth[-1]
+            seen = event.get("island_pose_t_s")  # a pose seen before the event: the truth then
+            if isinstance(seen, int | float):
+                k = bisect.bisect_left([p[0] for p in self.truth], float(seen))
+                at = self.truth[min(k, len(self.truth) - 1)]
+            event["truth_pose"] = dict(zip(("x", "y", "theta"), at[1:], strict=True))
         self.events.append(event)
 
 

@@ -96,6 +96,9 @@ class ExitsRun:
         return sum(a.false for a in self.arrivals)
 
 
+_SCANS_PER_S = 10.0  # scans (and truth poses kept) per simulated second
+
+
 def straight_first(cfg: HallFollowerConfig) -> HallFollowerConfig:
     """The follower's config preferring straight on at every decision (left-hand order where
     straight is closed): handed over at an exit, it carries the robot along that exit's
@@ -163,19 +166,19 @@ def explore_by_exits(
     builder = IslandBuilder(builder_cfg, hooks=explorer_hooks(ecfg, lambda: graph))
     steps, dt = max(1, round(50.0 / 10.0)), 1.0 / 50.0
     events: list[dict[str, Any]] = []
-    truth, odom = [], []
+    truth, odom = list[FloatArray](), list[FloatArray]()  # one pose per scan each
     unanswered = 0
     contacts: list[tuple[float, float, float, str]] = []
     builder.on_odometry(0.0, robot.odom_pose, robot.odom_covariance)
     builder.on_ground_truth(robot.true_pose)
     blocked = False
-    for _ in range(int(sim_s * 10.0)):
+    for _ in range(int(sim_s * _SCANS_PER_S)):
         t = robot.time_s
         ranges = sonar.scan(near, robot.true_pose, gen)
         builder.set_strategy(follower.strategy())
         builder.on_scan(t, ranges, sonar.angles_rad)
         cmd = builder.command(t)
-        _record(cmd.events, graph, robot.true_pose, events)
+        _record(cmd.events, graph, robot.true_pose, events, truth)
         explorer.on_events(cmd.events)
         explorer.on_strategy(follower.strategy())
         explorer.on_graph(graph)
@@ -217,12 +220,17 @@ def explore_by_exits(
 
 
 def _record(new: tuple[BuilderEvent, ...], graph: TopoGraph, truth: Pose2D,
-            events: list[dict[str, Any]]) -> None:
-    """Apply the builder's new events to the map, and keep them with the true pose."""
+            events: list[dict[str, Any]], history: list[FloatArray]) -> None:
+    """Apply the builder's new events to the map, and keep them with the true pose (when the
+    event's island_pose was seen before, the true pose then: `history`, one per scan)."""
     for e in new:
         apply_items(graph, e)
         d = event_to_dict(e)
-        d["truth_pose"] = {"x": truth.x, "y": truth.y, "theta": truth.theta}
+        at = truth
+        if e.island_pose_t_s is not None and history:
+            k = min(len(history) - 1, max(0, round(e.island_pose_t_s * _SCANS_PER_S)))
+            at = Pose2D(*(float(v) for v in history[k]))
+        d["truth_pose"] = {"x": at.x, "y": at.y, "theta": at.theta}
         events.append(d)
 
 

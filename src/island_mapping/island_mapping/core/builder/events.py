@@ -55,8 +55,9 @@ class BuilderEvent:
     (bearing in the origin frame [rad], length [m]); measure: the best normalized measure
     max_i(R_i/T_i) so far; bound: E_min/epsilon at the attempt; partial: a dismissed star that
     did not do all four legs. island_revisited: revisited_island_id, island_pose (the robot in
-    that island's frame when recognised [m, rad]), residual_m (RMS of the fit [m]) and, when it
-    was added or made cheaper, the edge from the previous island. exit_updates: exits the
+    that island's frame when recognised [m, rad]; at island_pose_t_s [s] when that was before
+    the event: a held star confirmed after a rehearsal), residual_m (RMS of the fit [m]) and,
+    when it was added or made cheaper, the edge from the previous island. exit_updates: exits the
     event's edge explored (managed mode), to apply after the island and the edge.
     revisit_hypothesis: `hypotheses`, the known islands the star fitted (best first).
     """
@@ -76,6 +77,7 @@ class BuilderEvent:
     reason: DismissReason | None = None
     revisited_island_id: int | None = None
     island_pose: Pose2D | None = None
+    island_pose_t_s: float | None = None
     residual_m: float | None = None
     exit_updates: tuple[ExitUpdate, ...] = ()
     hypotheses: tuple[Hypothesis, ...] = ()
@@ -116,6 +118,8 @@ def event_to_dict(e: BuilderEvent) -> dict[str, object]:
         d["revisited_island_id"] = e.revisited_island_id
     if e.island_pose is not None:
         d["island_pose"] = json_io.pose_to_dict(e.island_pose)
+    if e.island_pose_t_s is not None:
+        d["island_pose_t_s"] = e.island_pose_t_s
     if e.residual_m is not None:
         d["residual_m"] = e.residual_m
     if e.exit_updates:

@@ -485,11 +485,12 @@ class IslandBuilder(ManagedInputs):
         self._state = State.DOCKING
 
     def _link_revisit(self, rec: Recognition, legs_m: tuple[tuple[float, float], ...],
-                      strategy_end: Pose2D | None, epsilon_m: float, heading_sigma_rad: float
-                      ) -> Pose2D:
+                      strategy_end: Pose2D | None, epsilon_m: float, heading_sigma_rad: float,
+                      seen: tuple[Pose2D, float] | None = None) -> Pose2D:
         """The edge and link from the previous island to the recognised one (its weight and
-        sigmas from epsilon_m [m] and heading_sigma_rad [rad]), and the event; the island's
-        origin in the odometry frame."""
+        sigmas from epsilon_m [m] and heading_sigma_rad [rad]), and the event (with the
+        robot's pose in the island as recognised at a time before, `seen`: a held star's);
+        the island's origin in the odometry frame."""
         assert self._odom is not None
         island = self.ledger.island(rec.island_id)
         origin_odom = self._odom.compose(rec.pose.inverse())  # the island origin, odometry
@@ -507,7 +508,9 @@ class IslandBuilder(ManagedInputs):
             edge = self.ledger.replace_edge(annotated)
         known = None if prev is None else self.ledger.edge(prev.id, island.id)
         self._emit(EventKind.ISLAND_REVISITED, anchor_odom=origin_odom,
-                   revisited_island_id=island.id, island_pose=rec.pose,
+                   revisited_island_id=island.id,
+                   island_pose=rec.pose if seen is None else seen[0],
+                   island_pose_t_s=None if seen is None else seen[1],
                    residual_m=rec.residual_m, edge=edge, legs_m=legs_m,
                    exit_updates=exit_updates(
                        known, None if known is None else (known.source, known.target),

@@ -68,8 +68,8 @@ class ManagedInputs(BuilderView):
         raise NotImplementedError  # the machine's
 
     def _link_revisit(self, rec: Recognition, legs_m: tuple[tuple[float, float], ...],
-                      strategy_end: Pose2D | None, epsilon_m: float, heading_sigma_rad: float
-                      ) -> Pose2D:
+                      strategy_end: Pose2D | None, epsilon_m: float, heading_sigma_rad: float,
+                      seen: tuple[Pose2D, float] | None = None) -> Pose2D:
         raise NotImplementedError  # the machine's
 
     def on_docked(self, island_id: int, origin_odom: Pose2D) -> None:
@@ -123,7 +123,8 @@ class ManagedInputs(BuilderView):
         held.attempt.outcome = EventKind.ISLAND_REVISITED
         self._attempt, self._track.star, self._held = None, None, None
         origin = self._link_revisit(held.now(choice, self._odom), tuple(held.attempt.legs_done),
-                                    choice.end, held.epsilon_m, held.heading_sigma_rad)
+                                    choice.end, held.epsilon_m, held.heading_sigma_rad,
+                                    seen=(choice.rec.pose, held.t_s))
         self.recognizer.remember(island_id, origin, held.cov, cov_at=held.odom)
         self.ledger.handed_back(self.ledger.island(island_id), self._path_m)
         self._strategy, self._departure = ControlStrategy(()), None
