@@ -221,11 +221,11 @@ def test_the_rehearsal_drives_the_shortest_edges_not_back_where_it_came_from() -
 
 
 def test_confirm_and_reject_need_a_held_decision() -> None:
-    """Off by default (stars are decided on the spot); the explorer's setting reaches the
-    builder's hooks; answers without a held decision are refused by name."""
-    assert explorer_hooks(ExplorerConfig(), TopoGraph).hold_hypotheses == 0
-    on = ExplorerConfig(rehearse_hypotheses=2)
-    assert explorer_hooks(on, TopoGraph).hold_hypotheses == 2
+    """On by default (two hypotheses); the explorer's setting reaches the builder's hooks (0:
+    stars decided on the spot); answers without a held decision are refused by name."""
+    assert explorer_hooks(ExplorerConfig(), TopoGraph).hold_hypotheses == 2
+    off = ExplorerConfig(rehearse_hypotheses=0)
+    assert explorer_hooks(off, TopoGraph).hold_hypotheses == 0
     builder = IslandBuilder(hooks=BuilderHooks(managed=True, hold_hypotheses=2))
     with pytest.raises(BuilderError, match="confirm: no decision is held"):
         builder.confirm(0)

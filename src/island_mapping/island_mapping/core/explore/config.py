@@ -303,14 +303,13 @@ class ExplorerConfig:
                           "of freedom) [-]"},
     )
     rehearse_hypotheses: int = field(
-        default=0,
+        default=2,
         metadata={"help": "a star that fits a known island and a look-alike is not decided on "
                           "the spot: up to this many of the islands it fits (best fit first, "
                           "each within the loop-closure gate) are tested by driving the "
-                          "island's shortest edge and localizing at its neighbour; the first "
-                          "that localizes there is docked onto, else a new island is built "
-                          "(0, the default: build at once; see docs/exploration.md, session "
-                          "22, for what it closes and the false merges it made) [-]"},
+                          "island's shortest edges and localizing at their neighbours; the "
+                          "first found so is docked onto, else a new island is built (0: build "
+                          "at once) [-]"},
     )
     rehearse_edges: int = field(
         default=3,
