@@ -18,12 +18,13 @@ from island_mapping.core.builder import BuilderConfig
 from island_mapping.core.route import NavigateConfig
 from island_mapping.evaluation.explore_exits import ExitsRun, explore_by_exits
 from island_mapping.evaluation.navigate import SimSetup
+from island_msgs_py.geometry import wrap_angles
 from island_sim.core.world_loader import load_world
 
 
 def _turns_deg(run: ExitsRun) -> tuple[float, float]:
     """(net turn, turning done) of the true path [deg]."""
-    d = np.angle(np.exp(1j * np.diff(run.truth_path[:, 2])))
+    d = wrap_angles(np.diff(run.truth_path[:, 2]))
     return math.degrees(float(d.sum())), math.degrees(float(np.abs(d).sum()))
 
 

@@ -186,7 +186,7 @@ class _Observer(Node):
             at = self.truth[-1]
             seen = event.get("island_pose_t_s")  # a pose seen before the event: the truth then
             if isinstance(seen, int | float):
-                k = bisect.bisect_left([p[0] for p in self.truth], float(seen))
+                k = bisect.bisect_left(self.truth, float(seen), key=lambda p: p[0])
                 at = self.truth[min(k, len(self.truth) - 1)]
             event["truth_pose"] = dict(zip(("x", "y", "theta"), at[1:], strict=True))
         self.events.append(event)

@@ -47,6 +47,13 @@ def wrap_angles(theta_rad: npt.ArrayLike) -> FloatArray:
     return np.asarray(np.arctan2(np.sin(a), np.cos(a)), dtype=np.float64)
 
 
+def unwind_sign(net_turn_rad: float, enabled: bool = True) -> float:
+    """+1 (turn left) or -1 (right): the way a full turn in place undoes the net turn so far
+    [rad] (always +1 when not enabled). A wheelbase error scales every odometric rotation by
+    the same fraction, so turns that cancel keep its heading error from growing."""
+    return -1.0 if enabled and net_turn_rad > 0.0 else 1.0
+
+
 # ----------------------------------------------------------------------------- poses
 
 

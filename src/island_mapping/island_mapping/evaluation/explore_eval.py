@@ -17,6 +17,7 @@ from enum import StrEnum
 from typing import Any
 
 import numpy as np
+from island_msgs_py.geometry import wrap_angles
 from island_msgs_py.types import Pose2D, wrap_angle
 from island_sim.core.places import world_places
 from island_sim.core.world_loader import load_world
@@ -67,7 +68,7 @@ def _heading_drift(truth: np.ndarray, odom: np.ndarray) -> dict[str, float]:
     if len(truth) < 2:
         return {"odom_heading_error_deg": 0.0, "net_turn_deg": 0.0}
     err = wrap_angle(float(odom[-1, 2] - truth[-1, 2] - (odom[0, 2] - truth[0, 2])))
-    turn = float(np.sum(np.angle(np.exp(1j * np.diff(truth[:, 2])))))
+    turn = float(np.sum(wrap_angles(np.diff(truth[:, 2]))))
     return {"odom_heading_error_deg": round(math.degrees(err), 1),
             "net_turn_deg": round(math.degrees(turn))}
 

@@ -105,12 +105,6 @@ class OdometryTrack:
             self.star.update(pose, cov)
         return moved
 
-    def unwind_sign(self, enabled: bool = True) -> float:
-        """+1 (turn left) or -1 (right): the way a full turn undoes the net turning so far
-        (always +1 when not enabled). A wheelbase error turns every odometric rotation by the
-        same fraction, so turns that cancel keep its heading error from growing."""
-        return -1.0 if enabled and self.turned_rad > 0.0 else 1.0
-
     def anchor_star(self) -> None:
         """An attempt starts at the latest pose: the star's own error restarts from 0."""
         assert self.pose is not None

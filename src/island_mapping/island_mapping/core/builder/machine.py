@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-from island_msgs_py.geometry import ranges_to_points
+from island_msgs_py.geometry import ranges_to_points, unwind_sign
 from island_msgs_py.types import (
     ControlStrategy,
     FloatArray,
@@ -258,7 +258,8 @@ class IslandBuilder(ManagedInputs):
             self._odom, self._truth, self._track.cov, eps, bound, first, self._ahead_free_m(),
             straight_behind_m(self._strategy),
             to_frame(ranges_to_points(*self._last_scan, self._odom), self._odom), self._last_scan)
-        self._attempt.turn_sign = self._track.unwind_sign(self.config.star.unwind_turns)
+        self._attempt.turn_sign = unwind_sign(self._track.turned_rad,
+                                              self.config.star.unwind_turns)
         self._track.anchor_star()
         self._state = State.STAR
         self._emit(EventKind.ATTEMPT_STARTED, anchor_odom=self._odom, bound=bound)
@@ -523,7 +524,7 @@ class IslandBuilder(ManagedInputs):
         dock = self._dock
         assert dock is not None and self._odom is not None
         if dock.phase is not LookPhase.LOOK:  # the next look turns the unwinding way
-            dock.turn_sign = self._track.unwind_sign(self.config.star.unwind_turns)
+            dock.turn_sign = unwind_sign(self._track.turned_rad, self.config.star.unwind_turns)
         cmd = dock_step(dock, self._odom, self._ahead_free_m(), self.config)
         if cmd is not None and not self._take_give_up():
             return cmd

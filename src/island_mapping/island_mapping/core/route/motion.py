@@ -21,7 +21,7 @@ from collections.abc import Generator
 from dataclasses import dataclass, field
 
 import numpy as np
-from island_msgs_py.geometry import ranges_to_points, to_frame
+from island_msgs_py.geometry import ranges_to_points, to_frame, unwind_sign
 from island_msgs_py.hall_perception import HallPerceptionConfig, Perception, perceive
 from island_msgs_py.types import ControlStrategy, FloatArray, Pose2D, PrimitiveKind, wrap_angle
 
@@ -364,7 +364,7 @@ def look_scans(d: Drive) -> Generator[Command, None, list[Scan]]:
     with cfg.unwind_turns, else left."""
     scans = [_scan(d.sense)]
     done, last = 0.0, d.sense.odom.theta
-    sign = -1.0 if d.cfg.unwind_turns and d.turned_rad > 0.0 else 1.0
+    sign = unwind_sign(d.turned_rad, d.cfg.unwind_turns)
     while done < 2.0 * math.pi:
         yield from step(d, 0.0, sign * d.cfg.turn_rate_radps)
         th = d.sense.odom.theta
