@@ -220,3 +220,24 @@ def test_the_planner_avoids_an_edge_whose_arrival_failed() -> None:
     t = nearest_unexplored(g, 0, penalty={frozenset((0, 1)): 100.0})
     assert t is not None and t.island_id == 2
     assert all(e.state is ExitState.UNEXPLORED for e in g.get_island(1).exits)
+
+
+# A 2.6 x 2.6 m room (origin at its middle) whose 0.8 m doorway in the north wall opens on a
+# hallway 0.9 m wide: no lane stays free for 3 m, the doorway's lane for 1.8 m.
+SMALL_ROOM = np.array([[-1.3, -1.3, 1.3, -1.3], [1.3, -1.3, 1.3, 1.3], [-1.3, -1.3, -1.3, 1.3],
+                       [-1.3, 1.3, -0.4, 1.3], [0.4, 1.3, 1.3, 1.3],
+                       [-3.0, 2.2, 3.0, 2.2]], dtype=float)
+
+
+def test_a_small_rooms_doorway_is_its_exit_though_no_lane_reaches_far() -> None:
+    from island_mapping.core.explore.config import ExitConfig
+    from island_mapping.core.explore.exits import island_exits
+
+    ev = ExitEvidence(SMALL_ROOM, np.zeros((0, 2)), np.zeros((0, 4)))
+    assert find_exits(ev) == ()  # every lane meets a wall within reach_m
+    found = island_exits(ev)
+    assert _headings(found) == [90]  # through the doorway
+    assert island_exits(ev, ExitConfig(closed_reach_m=0.0)) == ()  # off
+    # An island with a lane free for reach_m keeps only that: the fallback does not add lanes.
+    hall = ExitEvidence(HALL, np.zeros((0, 2)), np.array([[-3.0, 0.0, 0.0, 0.0]]), math.pi)
+    assert island_exits(hall) == through_gates(find_exits(hall), hall)

@@ -82,6 +82,12 @@ class ExitConfig:
     min_width_m: float = field(
         default=0.6, metadata={"help": "narrowest opening reported as an exit [m]"}
     )
+    closed_reach_m: float = field(
+        default=1.8,
+        metadata={"help": "an island none of whose lanes stays free reach_m (a small room "
+                          "whose doorway opens on a narrow hallway) takes the lanes free this "
+                          "far as its exits (0: none) [m]"},
+    )
     open_width_m: float = field(
         default=3.0,
         metadata={"help": "where the model's free width across the origin is at least this "
@@ -133,7 +139,8 @@ class ExitConfig:
                               "look_from_m", "look_deg", "look_min_fraction",
                               "merge_deg", "min_width_m", "entry_m", "opening_ahead_deg",
                               "open_width_m", "gap_line_m", "gap_line_deg"),
-                       ("driven_clearance_m", "arrival_match_deg", "lane_offset_m"))
+                       ("driven_clearance_m", "arrival_match_deg", "lane_offset_m",
+                        "closed_reach_m"))
         for name in ("min_points", "look_min_readings"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:

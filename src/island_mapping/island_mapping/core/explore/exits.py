@@ -19,7 +19,7 @@ a side corridor's mouth): where to stand before it and which way to drive throug
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from island_msgs_py.geometry import point_segment_distance, wrap_angles
@@ -223,6 +223,17 @@ def find_exits(ev: ExitEvidence, cfg: ExitConfig | None = None) -> tuple[Exit, .
         kept.append((wrap_angle(ev.arrival_rad), 2.0 * c.clearance_m + c.min_width_m))
     kept.sort(key=lambda e: e[0])
     return tuple(Exit(k, float(h), float(w)) for k, (h, w) in enumerate(kept))
+
+
+def island_exits(ev: ExitEvidence, cfg: ExitConfig | None = None) -> tuple[Exit, ...]:
+    """An island's exits: `find_exits`, through the gates in open space (`through_gates`);
+    where no lane stays free reach_m (a small room whose doorway opens on a narrow hallway,
+    its far wall nearer than reach_m), the lanes free closed_reach_m."""
+    c = cfg if cfg is not None else ExitConfig()
+    found = find_exits(ev, c)
+    if not found and 0.0 < c.closed_reach_m < c.reach_m:
+        found = find_exits(ev, replace(c, reach_m=c.closed_reach_m))
+    return through_gates(found, ev, c)
 
 
 _WIDTH_PROBES_M = (-0.5, 0.0, 0.5)

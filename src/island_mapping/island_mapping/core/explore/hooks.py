@@ -31,9 +31,8 @@ from island_mapping.core.builder.recognition import PoseSnapshot, Recognition
 from island_mapping.core.explore.config import ExplorerConfig
 from island_mapping.core.explore.exits import (
     ExitEvidence,
-    find_exits,
+    island_exits,
     opening_exits,
-    through_gates,
 )
 from island_mapping.core.explore.openings import exit_pose
 from island_mapping.core.graph import TopoGraph
@@ -93,7 +92,7 @@ def explorer_hooks(cfg: ExplorerConfig, graph: Callable[[], TopoGraph]) -> Build
               arrival_rad: float | None, looks: FloatArray, opening: OpeningExit | None
               ) -> tuple[Exit, ...]:
         ev = ExitEvidence(segments, points, driven, arrival_rad, looks)
-        found = through_gates(find_exits(ev, cfg.exit), ev, cfg.exit)
+        found = island_exits(ev, cfg.exit)
         return found if opening is None else opening_exits(found, ev, opening, cfg.exit)
 
     return BuilderHooks(managed=True, find_exits=exits,
