@@ -135,6 +135,7 @@ class Following:
     near_last_island: bool
     at_opening: bool = False
     in_hallway: bool = True  # the quick check may start an attempt here
+    in_room: bool = False  # long enough along a room's walls: here too
 
 
 def follow_step(
@@ -164,7 +165,7 @@ def follow_step(
     if now.at_opening:  # the place's good point is in the opening, not at the robot
         gate.end_deferral()
         return (FollowStep.FOLLOW if try_revisit() else FollowStep.ATTEMPT), 0.0
-    if not now.in_hallway:
+    if not (now.in_hallway or now.in_room):
         return FollowStep.FOLLOW, 0.0
     q = quick()
     if q < cfg.quick_reject_fraction * eq3_bound(cfg, now.epsilon_m):

@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from island_msgs_py.types import ControlStrategy, Edge, FloatArray, Island, Pose2D
 
+from island_mapping.core.builder.geometry import drive_clear
 from island_mapping.core.builder.motion import drive_onto_origin
 from island_mapping.core.builder.recognition import Recognizer
 from island_mapping.core.graph import normalize_strategy
@@ -104,14 +106,18 @@ class Ledger:
         self.link_from_last(island_id, origin_odom, epsilon_m, heading_sigma_rad)
         return edge
 
-    def near_last_island(self, odom: Pose2D, vicinity_m: float) -> bool:
-        """Is `odom` within vicinity_m [m] of the last island's origin as last known?"""
+    def near_last_island(self, odom: Pose2D, vicinity_m: float, sight: bool = False) -> bool:
+        """Is `odom` within vicinity_m [m] of the last island's origin as last known? With
+        `sight`, not when a wall of the island's own model stands between the origin and the
+        robot (another room behind a wall, however near)."""
         last = self.last_island
         known = None if last is None else self.recognizer.known(last.id)
-        if known is None:
+        if last is None or known is None:
             return False
         origin = known[0]
-        return math.hypot(odom.x - origin.x, odom.y - origin.y) < vicinity_m
+        if math.hypot(odom.x - origin.x, odom.y - origin.y) >= vicinity_m:
+            return False
+        return not sight or in_sight(last.model.segments, odom.relative_to(origin))
 
     def link_from_last(self, target: int, origin_odom: Pose2D, sigma_m: float,
                        sigma_rad: float) -> None:
@@ -128,3 +134,20 @@ class Ledger:
         if island is not None:
             self.last_island = island
             self.start_path_m = path_m
+
+
+# A wall nearer than this to the robot or the origin does not hide one from the other (the
+# wall the robot follows, the walls around the origin) [m]; a sight line passing a model
+# segment nearer than _HIDDEN_M crosses it [m].
+_SIGHT_END_M = 0.4
+_HIDDEN_M = 0.04
+
+
+def in_sight(segments: FloatArray, at: Pose2D) -> bool:
+    """Does the straight line from an island's origin to `at` (its frame) cross none of its
+    model's walls `segments` (N, 4) [m], but for their last _SIGHT_END_M at either end?"""
+    d = math.hypot(at.x, at.y)
+    if segments.shape[0] == 0 or d <= 2.0 * _SIGHT_END_M:
+        return True
+    u = np.array([at.x, at.y]) / d
+    return drive_clear(segments, _SIGHT_END_M * u, (d - _SIGHT_END_M) * u, _HIDDEN_M)

@@ -233,9 +233,11 @@ class IslandBuilder(ManagedInputs):
         assert self._odom is not None
         odom, cfg = self._odom, self.config
         now = Following(self.epsilon_m, self._t, self._path_m, self._strategy,
-                        self.ledger.near_last_island(odom, cfg.vicinity_m),
+                        self.ledger.near_last_island(odom, cfg.vicinity_m,
+                                                     sight=cfg.opening.enabled),
                         self._openings.pending(self._path_m),
-                        self._openings.in_hallway(self._path_m))
+                        self._openings.in_hallway(self._path_m),
+                        self._openings.in_room(self._path_m))
         step, quick = follow_step(
             self._gate, cfg, now,
             lambda: self.measures.of_points(concat(self._history.quick_points()),

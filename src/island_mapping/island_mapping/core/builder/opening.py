@@ -69,6 +69,7 @@ class OpeningRun:
     taken: bool = False
     walled_m: float | None = None  # path when both sides last became walls
     last_walled_m: float | None = None  # path when both sides were last seen walls
+    first_m: float | None = None  # path at the run's first scan [m]
     left: int = 0  # scans of the run with the left side open
     right: int = 0
     side: int = 0
@@ -78,6 +79,8 @@ class OpeningRun:
                cfg: OpeningConfig) -> None:
         """One scan at path_m [m], heading theta_rad (odometry): which sides are open. A turn
         of the follower ends the hallway (and a run in it)."""
+        if self.first_m is None:
+            self.first_m = path_m
         if self.theta_rad is None or abs(wrap_angle(theta_rad - self.theta_rad)) > _TURNED_RAD:
             self.theta_rad, self.start_m, self.walled_m = theta_rad, None, None
         if left_open or right_open:
@@ -269,6 +272,15 @@ class Openings:
         last = self.run.last_walled_m
         return not self.cfg.enabled or (
             last is not None and path_m - last <= self.cfg.hallway_recent_m)
+
+    def in_room(self, path_m: float) -> bool:
+        """Has the follower run along a room's (or a hall's) walls, never both sides walls,
+        over room_after_m of path (since the last hallway, or the handover)? Then the room is
+        a place of its own: a house of rooms has no hallway to stand its islands in."""
+        run = self.run
+        since = run.last_walled_m if run.last_walled_m is not None else run.first_m
+        return (self.cfg.enabled and self.cfg.room_after_m > 0.0 and since is not None
+                and path_m - since >= self.cfg.room_after_m)
 
     def pending(self, path_m: float) -> bool:
         """An opening passed in a hallway waits to be entered (the robot at path_m [m]); one

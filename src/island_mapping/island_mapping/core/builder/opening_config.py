@@ -45,6 +45,12 @@ class OpeningConfig:
                           "both sides were walls within this much path (a hallway, its corner "
                           "or end), not along a room's wall [m]"},
     )
+    room_after_m: float = field(
+        default=6.0,
+        metadata={"help": "with openings on, after this much path along a room's walls with "
+                          "no hallway (both sides walls) the quick check may start an attempt "
+                          "there too: the room's own island (0: rooms only at their doors) [m]"},
+    )
     narrow_m: float = field(
         default=0.7,
         metadata={"help": "both side walls nearer than this (robot centre): a doorway's "
@@ -74,6 +80,7 @@ class OpeningConfig:
 
     def __post_init__(self) -> None:
         _check("OpeningConfig", self, ("min_m", "hall_m", "long_m", "stale_m", "hallway_recent_m",
+                                       "room_after_m",
                                        "narrow_m", "past_m",
                                        "room_in_m", "branch_m", "max_in_m", "clearance_m"),
                strict=False)
