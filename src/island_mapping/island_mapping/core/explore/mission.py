@@ -153,7 +153,7 @@ class Explorer(TripEnds):
         if self._drive is None:
             self._drive = Drive(sense, self.nav, self.perception, self.hall_width_m)
             self._gen = self._mission()
-        self._drive.sense = sense
+        self._drive.spin(sense)
         self._since_dock.update(sense.odom, counted=self._drove)
         self._way.add(sense.odom)
         self._seen.append((sense.t_s, sense.points_odom()))

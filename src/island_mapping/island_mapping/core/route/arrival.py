@@ -82,6 +82,26 @@ def localize_multi(
     return best, bool(best.converged and best.residual_m <= cfg.max_residual_m)
 
 
+# Turns of a fit tried for an alias: a quarter either way and a half [rad].
+_ALIAS_TURNS_RAD = (0.5 * math.pi, math.pi, -0.5 * math.pi)
+
+
+def turned_alias(island: Island, points_robot: FloatArray, fit: LocalizationResult,
+                 cfg: NavigateConfig) -> bool:
+    """Does the island fit the points as well from the fit's position turned by a quarter or
+    half turn (converged, the residual within max_residual_m, the matched share within
+    alias_margin of the fit's)?"""
+    pts = thin_evenly(points_robot, cfg.max_points)
+    for turn in _ALIAS_TURNS_RAD:
+        init = Pose2D(fit.pose.x, fit.pose.y, wrap_angle(fit.pose.theta + turn))
+        alt = localize(island.model, pts, init, cfg.localize)
+        near = abs(wrap_angle(alt.pose.theta - init.theta)) <= math.radians(cfg.max_turn_deg)
+        if (alt.converged and near and alt.residual_m <= cfg.max_residual_m
+                and alt.matched_fraction >= fit.matched_fraction - cfg.alias_margin):
+            return True
+    return False
+
+
 def unconstrained_axis_rad(island: Island, points_robot: FloatArray, pose: Pose2D,
                            cfg: LocalizeConfig) -> float:
     """Direction in the island frame along which a fit at `pose` is least constrained [rad].
@@ -132,6 +152,11 @@ def localize_and_dock(
     if trusted and math.hypot(res.pose.x - estimate.x, res.pose.y - estimate.y) > (
             c.route_max_shift_m):
         trusted = False  # farther than a route's end can be: a look-alike place
+    if trusted and d.spun_rad >= math.radians(c.alias_after_deg) and turned_alias(
+            island, pts, res, c):
+        trusted = False  # odometry's heading may be a quarter turn off: which one is unknown
+    if trusted:
+        d.spun_rad = 0.0
     fix = Fix(island.id, res.pose, trusted, res)
     if on_fix is not None:
         on_fix(fix)

@@ -177,6 +177,19 @@ class NavigateConfig:
     )
     dock_tol_deg: float = field(default=3.0, metadata={"help": "and this heading [deg]"})
     dock_attempts: int = field(default=3, metadata={"help": "drive-and-relocalize rounds [-]"})
+    alias_after_deg: float = field(
+        default=3600.0,
+        metadata={"help": "after the robot has turned this much (either way, counted by the "
+                          "explorer) since its last trusted fix, odometry's heading may be a "
+                          "quarter turn off: an arrival's fit that fits as well turned by a "
+                          "quarter or half turn is not trusted (a square room, a + junction) "
+                          "(0: always checked) [deg]"},
+    )
+    alias_margin: float = field(
+        default=0.1,
+        metadata={"help": "a turned fit whose matched share of the points is within this of "
+                          "the fit's fits as well [-]"},
+    )
     physics_rate_hz: float = field(default=50.0, metadata={"help": "simulation step rate [Hz]"})
     sensor_rate_hz: float = field(default=10.0, metadata={"help": "sonar scan rate [Hz]"})
     max_edge_time_s: float = field(
@@ -223,6 +236,8 @@ class NavigateConfig:
             "min_fit_constraint",
             "axis_search_step_m",
             "axis_search_min_constraint",
+            "alias_after_deg",
+            "alias_margin",
         ):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):

@@ -107,6 +107,14 @@ class Drive:
     # The echoes of the last _RECENT_SCANS scans, odometry frame, (K, 2) each [m].
     recent: deque[FloatArray] = field(default_factory=lambda: deque(maxlen=_RECENT_SCANS))
     turned_rad: float = 0.0  # signed odometric turn during the steps driven so far [rad]
+    # Odometric turn either way since the last trusted fix, whoever drove (the explorer
+    # counts it, `spin`) [rad].
+    spun_rad: float = 0.0
+
+    def spin(self, sense: Sense) -> None:
+        """The newest sensing, whoever drove since the last: its turn counts in spun_rad."""
+        self.spun_rad += abs(wrap_angle(sense.odom.theta - self.sense.odom.theta))
+        self.sense = sense
 
     def recent_points(self) -> FloatArray:
         """The remembered echoes in the robot's frame now, (K, 2) [m]."""
