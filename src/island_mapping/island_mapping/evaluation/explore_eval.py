@@ -76,7 +76,11 @@ def _heading_drift(truth: np.ndarray, odom: np.ndarray) -> dict[str, float]:
 def _exits(setup: SimSetup, sim_s: float, rng: np.random.Generator, start: Pose2D | None
            ) -> tuple[TopoGraph, list[dict[str, Any]], dict[int, Pose2D], dict[str, Any]]:
     run = explore_by_exits(setup, sim_s, rng=rng, start=start)
-    extra = {"wall_contacts": run.collisions, "ended_by_itself": run.done,
+    by: dict[str, int] = {}
+    for *_, who in run.contacts:  # the scan periods with a contact, by who drove then
+        by[who] = by.get(who, 0) + 1
+    extra = {"wall_contacts": run.collisions, "contact_periods_by_driver": by,
+             "ended_by_itself": run.done,
              "sim_seconds": round(run.sim_seconds, 1), "false_arrivals": run.false_arrivals,
              "arrivals": len(run.arrivals), "explorer": run.explorer_counts,
              "unanswered_scans": run.unanswered_scans, "calibration": run.calibration,
