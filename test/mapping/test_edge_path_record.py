@@ -82,6 +82,32 @@ def test_a_long_record_stays_bounded_and_right() -> None:
     assert _kinds(rec.strategy()).count("G") == 10
 
 
+def test_a_lap_round_a_room_and_a_shuttle_are_cut_from_the_way() -> None:
+    """In through a doorway (2 m north), once round a 4 x 3 m room, back and forth along its
+    wall, then 2 m east: with loops cut the way is in and east (both laps gone), ending
+    where the robot did; without, the laps stay."""
+    def walk(rec: PathRecord) -> None:
+        rec.restart(Pose2D(0.0, 0.0, 0.5 * math.pi))
+        pts = [(0.0, y) for y in np.arange(0.0, 2.0, 0.02)]
+        lap = [(0.0, 2.0), (2.0, 2.0), (2.0, 5.0), (-2.0, 5.0), (-2.0, 2.0), (0.0, 2.0)]
+        for a, b in zip(lap, lap[1:], strict=False):
+            pts += [(a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]))
+                    for t in np.linspace(0.0, 1.0, 60, endpoint=False)]
+        pts += [(x, 2.0) for x in np.arange(0.0, -1.8, -0.02)]  # shuttle west and back
+        pts += [(x, 2.0) for x in np.arange(-1.8, 2.0, 0.02)]  # then on east to x = 2
+        for x, y in pts:
+            rec.add(Pose2D(float(x), float(y), 0.0))
+    cut, kept = PathRecord(0.25, shortcut_m=0.4, loop_m=3.0), PathRecord(0.25)
+    walk(cut)
+    walk(kept)
+    go = [sum(p.metres for p in r.strategy().steps if p.kind is PrimitiveKind.GO)
+          for r in (cut, kept)]
+    assert go[0] < 5.0 < 17.0 < go[1], (str(cut.strategy()), str(kept.strategy()))
+    for r in (cut, kept):  # the displacement is in the frame of the start, facing north
+        end = Pose2D(0.0, 0.0, 0.5 * math.pi).compose(strategy_displacement(r.strategy()))
+        assert math.hypot(end.x - 2.0, end.y - 2.0) < 0.2
+
+
 def test_a_record_that_is_off_keeps_nothing() -> None:
     """tolerance_m 0 (the builder's default: edges keep the follower's record)."""
     rec = PathRecord(0.0)

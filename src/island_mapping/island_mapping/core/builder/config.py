@@ -333,6 +333,17 @@ class BuilderConfig:
                           "simplified to a polyline within this (core.builder.path_record); "
                           "0 = the follower's own record of its primitives [m]"},
     )
+    edge_shortcut_m: float = field(
+        default=0.0,
+        metadata={"help": "an edge's way is kept without its loops: where it came back within "
+                          "this of a point passed edge_loop_m earlier, the lap (a room walked "
+                          "round, a shuttle) is cut (core.graph.without_loops); 0: kept [m]"},
+    )
+    edge_loop_m: float = field(
+        default=3.0,
+        metadata={"help": "see edge_shortcut_m: the shortest stretch of the way that counts as "
+                          "a loop [m]"},
+    )
     star: StarConfig = field(
         default_factory=StarConfig, metadata={"help": "the four-corner star routine"}
     )
@@ -372,6 +383,7 @@ class BuilderConfig:
             "settled_go_m", "dismiss_fraction", "first_island_min_measure", "peak_min_gain",
             "peak_ahead_min_gain", "peak_ahead_m", "origin_feature_radius_m", "probe_turn_deg",
             "probe_agree_deg", "origin_seen_radius_m", "drive_stall_s", "edge_path_tolerance_m",
+            "edge_shortcut_m", "edge_loop_m",
         ), strict=False)
         if isinstance(self.probe_climbs, bool) or not isinstance(self.probe_climbs, int) or (
             self.probe_climbs < 0

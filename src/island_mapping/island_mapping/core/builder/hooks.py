@@ -85,6 +85,8 @@ class BuilderHooks:
     revisit: RevisitConfig | None = None  # the recognition the explorer wants (None: the builder's)
     opening: OpeningConfig | None = None  # side openings as places (None: the builder's)
     accept_on_legs: bool | None = None  # eq. 3 over the star's region (None: the builder's)
+    # An edge's way without its loops: (edge_shortcut_m, edge_loop_m) [m] (None: the builder's).
+    edge_loops: tuple[float, float] | None = None
     # A star fitting this many look-alike islands at most holds its decision for the
     # explorer's evidence (`core.builder.held`; 0: decide on the spot), for at most hold_s [s].
     hold_hypotheses: int = 0
@@ -92,8 +94,9 @@ class BuilderHooks:
 
 
 def hooked_config(config: BuilderConfig | None, hooks: BuilderHooks) -> BuilderConfig:
-    """The builder's configuration under `hooks`: its revisit settings, its side openings and
-    accept_on_legs replaced by the hooks' when they bring their own."""
+    """The builder's configuration under `hooks`: its revisit settings, its side openings,
+    accept_on_legs and the edges' loop cutting replaced by the hooks' when they bring their
+    own."""
     cfg = config if config is not None else BuilderConfig()
     if hooks.revisit is not None:
         cfg = dataclasses.replace(cfg, revisit=hooks.revisit)
@@ -101,6 +104,9 @@ def hooked_config(config: BuilderConfig | None, hooks: BuilderHooks) -> BuilderC
         cfg = dataclasses.replace(cfg, opening=hooks.opening)
     if hooks.accept_on_legs is not None:
         cfg = dataclasses.replace(cfg, accept_on_legs=hooks.accept_on_legs)
+    if hooks.edge_loops is not None:
+        cfg = dataclasses.replace(cfg, edge_shortcut_m=hooks.edge_loops[0],
+                                  edge_loop_m=hooks.edge_loops[1])
     return cfg
 
 

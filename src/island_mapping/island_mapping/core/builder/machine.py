@@ -106,7 +106,8 @@ class IslandBuilder(ManagedInputs):
         self._stall = StallWatch(self.config.drive_stall_s)
         self._gave_up = False  # the drive under way stalled: it ends where the robot is
         self._strategy = ControlStrategy(())
-        self._path = PathRecord(self.config.edge_path_tolerance_m)  # the follower's way
+        self._path = PathRecord(self.config.edge_path_tolerance_m, self.config.edge_shortcut_m,
+                                self.config.edge_loop_m)  # the follower's way
         self._attempt: Attempt | None = None
         self._dock: Dock | None = None
         self._held: Held | None = None

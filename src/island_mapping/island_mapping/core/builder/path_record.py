@@ -26,7 +26,7 @@ from island_msgs_py.types import (
 )
 
 from island_mapping.core.builder.motion import rot
-from island_mapping.core.graph import normalize_strategy
+from island_mapping.core.graph import normalize_strategy, without_loops
 
 SPACING_M = 0.05
 """A position is kept once the robot moved this far from the last one kept [m]."""
@@ -53,11 +53,14 @@ def strategy_from_path(points: FloatArray, start_heading_rad: float, end_heading
 
 
 class PathRecord:
-    """The odometric positions driven since `restart` (fed by `add`), as a strategy; off
-    (keeps nothing, an empty strategy) with tolerance_m <= 0."""
+    """The odometric positions driven since `restart` (fed by `add`), as a strategy without
+    the loops it drove (`without_loops` with shortcut_m, loop_m [m]; shortcut_m 0: with
+    them); off (keeps nothing, an empty strategy) with tolerance_m <= 0."""
 
-    def __init__(self, tolerance_m: float) -> None:
+    def __init__(self, tolerance_m: float, shortcut_m: float = 0.0, loop_m: float = 3.0
+                 ) -> None:
         self.tolerance_m = tolerance_m
+        self.shortcut_m, self.loop_m = shortcut_m, loop_m  # loops cut (`without_loops`) [m]
         self._start: Pose2D | None = None
         self._end: Pose2D | None = None
         self._points: list[tuple[float, float]] = []
@@ -94,4 +97,5 @@ class PathRecord:
         if self._start is None or self._end is None:
             return ControlStrategy(())
         pts = np.array([*self._points, (self._end.x, self._end.y)])
-        return strategy_from_path(pts, self._start.theta, self._end.theta, self.tolerance_m)
+        way = strategy_from_path(pts, self._start.theta, self._end.theta, self.tolerance_m)
+        return without_loops(way, self.shortcut_m, self.loop_m)

@@ -86,7 +86,8 @@ def loop_closure_gate(cfg: ExplorerConfig, graph: Callable[[], TopoGraph] | None
 
 def explorer_hooks(cfg: ExplorerConfig, graph: Callable[[], TopoGraph]) -> BuilderHooks:
     """Managed mode with `find_exits` (cfg.exit), cfg.revisit's search and the loop-closure
-    gate (module docstring); `graph` returns the latest map (the exits' states)."""
+    gate (module docstring), edges without their loops as the way back is
+    (return_shortcut_m, return_loop_m); `graph` returns the latest map (the exits' states)."""
 
     def exits(segments: FloatArray, points: FloatArray, driven: FloatArray,
               arrival_rad: float | None, looks: FloatArray, opening: OpeningExit | None
@@ -99,6 +100,7 @@ def explorer_hooks(cfg: ExplorerConfig, graph: Callable[[], TopoGraph]) -> Build
                         accept_revisit=loop_closure_gate(cfg, graph),
                         arrival_match_deg=cfg.exit.arrival_match_deg, revisit=cfg.revisit,
                         opening=cfg.opening, accept_on_legs=cfg.accept_on_legs,
+                        edge_loops=(cfg.return_shortcut_m, cfg.return_loop_m),
                         hold_hypotheses=cfg.rehearse_hypotheses)
 
 
