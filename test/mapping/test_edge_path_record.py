@@ -4,6 +4,7 @@ primitives (turning while driving is not in its record)."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -90,7 +91,7 @@ def test_a_lap_round_a_room_and_a_shuttle_are_cut_from_the_way() -> None:
         rec.restart(Pose2D(0.0, 0.0, 0.5 * math.pi))
         pts = [(0.0, y) for y in np.arange(0.0, 2.0, 0.02)]
         lap = [(0.0, 2.0), (2.0, 2.0), (2.0, 5.0), (-2.0, 5.0), (-2.0, 2.0), (0.0, 2.0)]
-        for a, b in zip(lap, lap[1:], strict=False):
+        for a, b in itertools.pairwise(lap):
             pts += [(a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]))
                     for t in np.linspace(0.0, 1.0, 60, endpoint=False)]
         pts += [(x, 2.0) for x in np.arange(0.0, -1.8, -0.02)]  # shuttle west and back
