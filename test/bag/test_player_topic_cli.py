@@ -119,7 +119,8 @@ def test_timed_playback_keeps_recorded_spacing(player_setup: Any,
     # Lateness is measured and reported, not asserted tightly here (machine load); the bench
     # checks the 5 ms goal. It must still be a replay, not a burst at the end.
     assert len(player.lateness_s) == N_SCANS
-    assert arrivals[-1] - arrivals[0] >= recorded[-1] - 1e-3
+    # (A burst has no span; the first message may be late under load, so not the full span.)
+    assert arrivals[-1] - arrivals[0] >= 0.5 * recorded[-1]
 
 
 def test_player_rejects_bad_arguments(player_setup: Any) -> None:
