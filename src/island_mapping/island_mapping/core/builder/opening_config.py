@@ -46,10 +46,16 @@ class OpeningConfig:
                           "or end), not along a room's wall [m]"},
     )
     room_after_m: float = field(
-        default=6.0,
+        default=0.0,
         metadata={"help": "with openings on, after this much path along a room's walls with "
                           "no hallway (both sides walls) the quick check may start an attempt "
                           "there too: the room's own island (0: rooms only at their doors) [m]"},
+    )
+    behind_walls: bool = field(
+        default=False,
+        metadata={"help": "with openings on, the last island's vicinity (vicinity_m) ends "
+                          "where a wall of its own model stands between its origin and the "
+                          "robot: the room behind is another place [bool]"},
     )
     narrow_m: float = field(
         default=0.7,
