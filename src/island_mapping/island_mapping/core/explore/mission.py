@@ -154,6 +154,9 @@ class Explorer(TripEnds):
             self._drive = Drive(sense, self.nav, self.perception, self.hall_width_m)
             self._gen = self._mission()
         self._drive.spin(sense)
+        if any(e.kind is EventKind.HANDED_BACK and e.accepted_island_id is not None
+               for e in self._events):  # at an island's origin: the pose is known again
+            self._drive.spun_rad = 0.0
         self._since_dock.update(sense.odom, counted=self._drove)
         self._way.add(sense.odom)
         self._seen.append((sense.t_s, sense.points_odom()))

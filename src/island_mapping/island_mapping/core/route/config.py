@@ -180,7 +180,8 @@ class NavigateConfig:
     alias_after_deg: float = field(
         default=3600.0,
         metadata={"help": "after the robot has turned this much (either way, counted by the "
-                          "explorer) since its last trusted fix, odometry's heading may be a "
+                          "explorer) since it last knew its pose (a trusted fix, a hand back "
+                          "at an island's origin), odometry's heading may be a "
                           "quarter turn off: an arrival's fit that fits as well turned by a "
                           "quarter or half turn is not trusted (a square room, a + junction) "
                           "(0: always checked) [deg]"},

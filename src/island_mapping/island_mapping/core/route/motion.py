@@ -107,8 +107,9 @@ class Drive:
     # The echoes of the last _RECENT_SCANS scans, odometry frame, (K, 2) each [m].
     recent: deque[FloatArray] = field(default_factory=lambda: deque(maxlen=_RECENT_SCANS))
     turned_rad: float = 0.0  # signed odometric turn during the steps driven so far [rad]
-    # Odometric turn either way since the last trusted fix, whoever drove (the explorer
-    # counts it, `spin`) [rad].
+    # Odometric turn either way since the pose was last known (a trusted fix; for the
+    # explorer also the builder's hand back at an island's origin), whoever drove (the
+    # explorer counts it, `spin`) [rad].
     spun_rad: float = 0.0
 
     def spin(self, sense: Sense) -> None:
