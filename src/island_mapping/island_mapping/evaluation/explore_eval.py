@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import Counter
 from enum import StrEnum
 from typing import Any
 
@@ -76,9 +77,8 @@ def _heading_drift(truth: np.ndarray, odom: np.ndarray) -> dict[str, float]:
 def _exits(setup: SimSetup, sim_s: float, rng: np.random.Generator, start: Pose2D | None
            ) -> tuple[TopoGraph, list[dict[str, Any]], dict[int, Pose2D], dict[str, Any]]:
     run = explore_by_exits(setup, sim_s, rng=rng, start=start)
-    by: dict[str, int] = {}
-    for *_, who in run.contacts:  # the scan periods with a contact, by who drove then
-        by[who] = by.get(who, 0) + 1
+    # the scan periods with a contact, by who drove then
+    by = dict(Counter(who for *_, who in run.contacts))
     extra = {"wall_contacts": run.collisions, "contact_periods_by_driver": by,
              "ended_by_itself": run.done,
              "sim_seconds": round(run.sim_seconds, 1), "false_arrivals": run.false_arrivals,

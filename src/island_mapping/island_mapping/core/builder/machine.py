@@ -235,8 +235,7 @@ class IslandBuilder(ManagedInputs):
         odom, cfg = self._odom, self.config
         now = Following(self.epsilon_m, self._t, self._path_m, self._strategy,
                         self.ledger.near_last_island(odom, cfg.vicinity_m,
-                                                     sight=cfg.opening.enabled
-                                                     and cfg.opening.behind_walls),
+                                                     sight=self._openings.behind_walls),
                         self._openings.pending(self._path_m),
                         self._openings.in_hallway(self._path_m),
                         self._openings.in_room(self._path_m))

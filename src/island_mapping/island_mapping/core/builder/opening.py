@@ -273,6 +273,12 @@ class Openings:
         return not self.cfg.enabled or (
             last is not None and path_m - last <= self.cfg.hallway_recent_m)
 
+    @property
+    def behind_walls(self) -> bool:
+        """Does the last island's vicinity end behind a wall of its model (openings on and
+        behind_walls)?"""
+        return self.cfg.enabled and self.cfg.behind_walls
+
     def in_room(self, path_m: float) -> bool:
         """Has the follower run along a room's (or a hall's) walls, never both sides walls,
         over room_after_m of path (since the last hallway, or the handover)? Then the room is
