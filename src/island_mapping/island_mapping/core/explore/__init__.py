@@ -2,13 +2,15 @@
 
 Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public API:
 
-- `ExitConfig`, `NoveltyConfig`, `ExplorerConfig`, `ExploreError` (config);
+- `ExitConfig`, `DoorwayConfig`, `NoveltyConfig`, `ExplorerConfig`, `ExploreError` (config);
 - `ExitEvidence`, `find_exits`, `arrival_exit`, `gate`, `free_lanes` (exits: where free space
   leads away from an island, in its frame);
 - `Target`, `nearest_unexplored`, `route_edges`, `unexplored_count` (planner);
 - `known_space_costs` (novelty: the planner's extra cost of exits into space the map knows);
 - `plan_departure`, `DeparturePlan`, `choose_lane`, `drive_departure`, `go_clear` (departure
   through an exit's gate or doorway; a drive that stops short of a wall ahead);
+- `pass_doorway` (a doorway no lane shows: found by a look at its wall and jambs, passed at its
+  middle);
 - `relocalize` (a second look at the island left when the way back did not localize);
 - `Explorer` (mission: one step per scan); `ExplorerCommand`, `ExplorerState`,
   `ExplorerStatus`, `Docked`, `Handover`, `Abort`, `Confirm`, `Reject` (requests: what it says
@@ -20,6 +22,7 @@ Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public
 """
 
 from island_mapping.core.explore.config import (
+    DoorwayConfig,
     ExitConfig,
     ExploreError,
     ExplorerConfig,
@@ -32,6 +35,7 @@ from island_mapping.core.explore.departure import (
     go_clear,
     plan_departure,
 )
+from island_mapping.core.explore.doorway import pass_doorway
 from island_mapping.core.explore.exits import (
     ExitEvidence,
     arrival_exit,
@@ -70,6 +74,7 @@ __all__ = [
     "Confirm",
     "DeparturePlan",
     "Docked",
+    "DoorwayConfig",
     "ExitConfig",
     "ExitEvidence",
     "ExploreError",
@@ -95,6 +100,7 @@ __all__ = [
     "loop_closure_gate",
     "loop_closure_hooks",
     "nearest_unexplored",
+    "pass_doorway",
     "plan_departure",
     "relocalize",
     "route_edges",

@@ -191,6 +191,84 @@ class NoveltyConfig:
 
 
 @dataclass(frozen=True)
+class DoorwayConfig:
+    """How the robot finds and passes a doorway its departure has no lane through
+    (`core.explore.doorway`)."""
+
+    enabled: bool = field(
+        default=True,
+        metadata={"help": "with no lane seen, the robot looks for a doorway in the wall the exit "
+                          "meets and passes its middle (false: it drives along the exit, "
+                          "centred by the sonar) [bool]"},
+    )
+    approach_m: float = field(
+        default=1.0,
+        metadata={"help": "where a look from the departure's start shows no doorway, the "
+                          "robot drives along the exit until an echo within 30 deg of its "
+                          "heading is this near (or 70 deg and 0.6 of it), then looks again "
+                          "[m]"},
+    )
+    sweep_deg: float = field(
+        default=45.0,
+        metadata={"help": "the look turns this far either side of the exit's heading [deg]"},
+    )
+    standoff_m: float = field(
+        default=0.7,
+        metadata={"help": "the robot stands this far before the doorway's middle, on its wall's "
+                          "normal, looks again and drives through from there [m]"},
+    )
+    refines: int = field(
+        default=3,
+        metadata={"help": "looks from the stand-off point at most, each moving it to the "
+                          "middle found [-]"},
+    )
+    settle_m: float = field(
+        default=0.08,
+        metadata={"help": "the looks stop once the middle found moves less than this [m]"},
+    )
+    see_through_m: float = field(
+        default=0.5,
+        metadata={"help": "a reading this much beyond the fitted wall sees through it [m]"},
+    )
+    half_width_m: float = field(
+        default=0.38,
+        metadata={"help": "a doorway whose one jamb only is seen has its middle this far "
+                          "from it along the wall [m]"},
+    )
+    min_inliers: int = field(
+        default=10,
+        metadata={"help": "bearing bins a wall must explain to be fitted [-]"},
+    )
+    cone_half_deg: float = field(
+        default=12.5,
+        metadata={"help": "half the sonar's cone (island_sim SonarConfig.beam_width_deg / 2) "
+                          "[deg]"},
+    )
+    cone_rays: int = field(
+        default=5,
+        metadata={"help": "rays across a cone the wall model takes (SonarConfig.rays_per_beam) "
+                          "[-]"},
+    )
+    echo_deg: float = field(
+        default=30.0,
+        metadata={"help": "largest incidence that still echoes (SonarConfig.reflect_deg) [deg]"},
+    )
+
+    def __post_init__(self) -> None:
+        _check_numbers(self, ("approach_m", "sweep_deg", "standoff_m", "settle_m",
+                              "see_through_m", "half_width_m", "echo_deg"),
+                       ("cone_half_deg",))
+        if not isinstance(self.enabled, bool):
+            raise ExploreError(f"DoorwayConfig.enabled: expected a bool, got {self.enabled!r}")
+        for name in ("refines", "min_inliers", "cone_rays"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < (1 if name == "cone_rays"
+                                                                     else 0):
+                raise ExploreError(f"DoorwayConfig.{name}: expected an int >= "
+                                   f"{1 if name == 'cone_rays' else 0}, got {v!r}")
+
+
+@dataclass(frozen=True)
 class ExplorerConfig:
     """The explorer's mission (`core.explore.mission`)."""
 
@@ -394,6 +472,11 @@ class ExplorerConfig:
     )
     exit: ExitConfig = field(
         default_factory=ExitConfig, metadata={"help": "how exits are found at an island"}
+    )
+    doorway: DoorwayConfig = field(
+        default_factory=DoorwayConfig,
+        metadata={"help": "a doorway the departure has no lane through: found by a look and "
+                          "passed at its middle"},
     )
     novelty: NoveltyConfig = field(
         default_factory=NoveltyConfig,

@@ -6,8 +6,9 @@ in the island frame). The lane whose entry heading lies nearest the exit's headi
 merge_deg) is driven: sideways to where it leaves the origin's line (when that is more than
 `lane_snap_m` off), then along it; a lane narrower than `door_max_width_m` (a doorway) is driven
 `door_through_m` into before the hall follower takes over. No such lane: the robot turns to the
-exit's heading and drives along it past the opening as route following drives a Go (through
-a doorway's middle; `drive_departure`). Everything in the island frame [m, rad].
+exit's heading and passes the doorway it leads to (`core.explore.doorway`: a look finds the
+doorway's wall and jambs; with `doorway.enabled` off, it drives along the exit as route
+following drives a Go; `drive_departure`). Everything in the island frame [m, rad].
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from island_msgs_py.hall_perception import HallPerceptionConfig, perceive
 from island_msgs_py.types import Exit, FloatArray, LineModel, Pose2D, wrap_angle
 
 from island_mapping.core.explore.config import ExplorerConfig
+from island_mapping.core.explore.doorway import pass_doorway
 from island_mapping.core.explore.exits import ExitEvidence, Lane, free_lanes
 from island_mapping.core.route import Command, Drive, go_along_hall, go_to, rotate_to
 
@@ -121,6 +123,9 @@ def drive_departure(d: Drive, plan: DeparturePlan, origin_odom: Pose2D, cfg: Exp
         return False
     if plan.through is not None:
         yield from go_clear(d, origin_odom.compose(plan.through))
+    elif plan.lane is None and cfg.doorway.enabled:
+        yield from pass_doorway(d, d.sense.odom.theta, cfg.doorway,
+                                cfg.exit.entry_m + cfg.door_through_m, cfg.door_through_m)
     elif plan.lane is None:
         yield from go_along_hall(d, cfg.exit.entry_m + cfg.door_through_m)
     return True
