@@ -48,6 +48,9 @@ _FIT_FAR_M = (0.3, 3.0)  # first look, where the departure starts: walls this ne
 _FIT_NEAR_M = (0.3, 1.6)  # ... and after an approach [m]
 _REFINE_SPAN_DEG = 15.0  # looks at the stand-off: the normal within this of the last [deg]
 _REFINE_BAND_M = 0.3  # ... and the wall within this of standoff_m [m]
+_REFINE_SWEEP = 0.5  # ... turning this share of sweep_deg (plus 2.5 deg) either way [-]
+_REFINE_WITHIN_DEG = 30.0  # ... the middle within this of the normal [deg]
+_RELOOK_BACK_M = 1.0  # a wall with no doorway seen is looked at again from this far [m]
 _MIN_USED = 8  # bins a wall's normal must be seen in [-]
 _LOCAL_MAX_BINS = 5  # a wall is a local maximum of inliers over this many normals each side
 _RELOOK_RAD = math.radians(45.0)  # a wall looked at again faces the exit this near [rad]
@@ -245,7 +248,7 @@ def _first_look(d: Drive, heading_rad: float, cfg: DoorwayConfig, near_m: tuple[
     if meet > near_m[1]:
         return None
     nw = wrap_angle(heading_rad + wall.normal_rad)
-    back = 1.0
+    back = _RELOOK_BACK_M
     x = p.at.x + meet * math.cos(heading_rad) - back * math.cos(nw)
     y = p.at.y + meet * math.sin(heading_rad) - back * math.sin(nw)
     yield from go_to(d, Pose2D(x, y, nw))
@@ -290,9 +293,9 @@ def pass_doorway(d: Drive, heading_rad: float, cfg: DoorwayConfig, approach_max_
         stand = Pose2D(door.x_m - cfg.standoff_m * math.cos(door.normal_rad),
                        door.y_m - cfg.standoff_m * math.sin(door.normal_rad), door.normal_rad)
         yield from go_to(d, stand)
-        p = yield from sweep(d, door.normal_rad, 0.5 * cfg.sweep_deg + 2.5)
+        p = yield from sweep(d, door.normal_rad, _REFINE_SWEEP * cfg.sweep_deg + 2.5)
         band = (cfg.standoff_m - _REFINE_BAND_M, cfg.standoff_m + _REFINE_BAND_M)
-        again = _look(p, _REFINE_SPAN_DEG, band, 30.0, cfg)[1]
+        again = _look(p, _REFINE_SPAN_DEG, band, _REFINE_WITHIN_DEG, cfg)[1]
         if again is None:
             break
         moved = math.hypot(again.x_m - door.x_m, again.y_m - door.y_m)
