@@ -16,6 +16,15 @@ class ExploreError(ValueError):
     """Bad input to exploration (the message names what was wrong)."""
 
 
+def _check_ints(owner: object, names: tuple[str, ...], minimum: int = 0) -> None:
+    """Named fields must be ints (not bools) >= minimum."""
+    for name in names:
+        v = getattr(owner, name)
+        if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
+            raise ExploreError(f"{type(owner).__name__}.{name}: expected an int >= {minimum}, "
+                               f"got {v!r}")
+
+
 def _check_numbers(owner: object, strict: tuple[str, ...], loose: tuple[str, ...]) -> None:
     """Named fields must be finite numbers, > 0 (strict) or >= 0 (loose)."""
     name = type(owner).__name__
@@ -260,12 +269,8 @@ class DoorwayConfig:
                        ("cone_half_deg",))
         if not isinstance(self.enabled, bool):
             raise ExploreError(f"DoorwayConfig.enabled: expected a bool, got {self.enabled!r}")
-        for name in ("refines", "min_inliers", "cone_rays"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < (1 if name == "cone_rays"
-                                                                     else 0):
-                raise ExploreError(f"DoorwayConfig.{name}: expected an int >= "
-                                   f"{1 if name == 'cone_rays' else 0}, got {v!r}")
+        _check_ints(self, ("refines", "min_inliers"))
+        _check_ints(self, ("cone_rays",), 1)
 
 
 @dataclass(frozen=True)
@@ -514,11 +519,8 @@ class ExplorerConfig:
         _check_numbers(self, ("side_min_width_m", "side_near_island_m", "side_merge_m",
                               "side_merge_deg", "side_chain_m", "side_search_m"),
                        ("side_max_turn_deg", "side_direct_m", "failed_edge_penalty_m"))
-        for name in ("retries_per_exit", "rehearse_hypotheses", "rehearse_edges",
-                     "rehearse_neighbours"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                raise ExploreError(f"ExplorerConfig.{name}: expected an int >= 0, got {v!r}")
+        _check_ints(self, ("retries_per_exit", "rehearse_hypotheses", "rehearse_edges",
+                           "rehearse_neighbours"))
 
 
 def help_of(cls: type, name: str) -> str:

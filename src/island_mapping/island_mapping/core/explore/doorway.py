@@ -30,6 +30,7 @@ import numpy as np
 from island_msgs_py.types import FloatArray, Pose2D, wrap_angle
 
 from island_mapping.core.explore.config import DoorwayConfig
+from island_mapping.core.explore.exits import _linear_runs
 from island_mapping.core.route import Command, Drive, go_to, rotate_to, step
 
 _FRONT_RAD = math.radians(30.0)  # echoes within this of the heading stop the approach [rad]
@@ -102,8 +103,8 @@ def approach(d: Drive, cfg: DoorwayConfig, max_m: float) -> Generator[Command, N
     driven (False); a contact also ends it (True)."""
     start = d.sense.odom
     while math.hypot(d.sense.odom.x - start.x, d.sense.odom.y - start.y) < max_m:
-        near = _front_m(d) <= cfg.approach_m or _front_m(d, _BESIDE_RAD) <= (
-            _BESIDE_FRACTION * cfg.approach_m)
+        near = _front_m(d) <= cfg.approach_m or (
+            _front_m(d, _BESIDE_RAD) <= _BESIDE_FRACTION * cfg.approach_m)
         if near or (yield from step(d, _APPROACH_MPS, 0.0)):
             return True
     return False
@@ -180,12 +181,6 @@ def fit_wall(p: Profile, around_rad: float, span_deg: float, near_m: tuple[float
     return None if best is None else best[1]
 
 
-def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
-    """Runs of True as (first, last) indices."""
-    edges = np.diff(np.concatenate(([0], flags.astype(np.int8), [0])))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1, strict=True))
-
-
 def find_doorway(p: Profile, wall: Wall, within_rad: float, cfg: DoorwayConfig
                  ) -> Doorway | None:
     """The doorway in `wall` whose middle lies nearest the profile's heading (within
@@ -205,7 +200,8 @@ def find_doorway(p: Profile, wall: Wall, within_rad: float, cfg: DoorwayConfig
         return np.array([o.x + r * math.cos(p.ref_rad + b), o.y + r * math.sin(p.ref_rad + b)])
 
     best: tuple[float, FloatArray] | None = None
-    for lo, hi in _runs(through):
+    for lo, length in _linear_runs(through):
+        hi = lo + length - 1
         left = on_wall(p.bearings_rad[lo] - edge) if lo > 0 and echo[lo - 1] else None
         right = (on_wall(p.bearings_rad[hi] + edge) if hi + 1 < len(echo) and echo[hi + 1]
                  else None)
