@@ -7,6 +7,10 @@ robot that recorded a strategy and to the robot that follows it.
 `perceive(ranges_m, angles_rad, config)` gives the free range ahead, whether each side is open,
 the perpendicular distance to each side's wall and, when both side walls fit as parallel
 lines, the hallway's direction in the robot frame.
+
+The robot's path is its width plus `path_margin_m` either side, narrowed where a side's wall
+stands closer than that (a hallway or doorway barely wider than the robot): echoes of that wall
+itself are then beside the path, not in it, down to `narrow_margin_m` of clearance.
 """
 
 from __future__ import annotations
@@ -46,6 +50,15 @@ class HallPerceptionConfig:
     side_half_angle_deg: float = 35.0  # echoes this near a side's perpendicular are its wall [deg]
     fit_tolerance_m: float = 0.08  # largest residual of one straight side wall [m]
     open_side_m: float = 2.5  # a side whose perpendicular range exceeds this is open [m]
+    narrow_margin_m: float = 0.03  # least path margin beside a side wall closer than that [m]
+
+
+def path_half_width_m(c: HallPerceptionConfig, side_m: float) -> float:
+    """Half the width of the robot's path [m] when the nearer side wall is `side_m` from the
+    robot centre: radius + path_margin_m, narrowed to keep that wall's echoes (within the fit
+    tolerance) out of it, but never below radius + narrow_margin_m."""
+    room = side_m - c.robot_radius_m - c.fit_tolerance_m
+    return c.robot_radius_m + min(c.path_margin_m, max(c.narrow_margin_m, room))
 
 
 @dataclass(frozen=True)
@@ -145,16 +158,6 @@ def perceive(
     x = rr * b.cos_a
     y = rr * b.sin_a
 
-    front_free = float(r[b.ahead])
-    front = cone = front_free
-    in_path = ok & (x > 0)
-    in_path &= np.abs(y) <= c.robot_radius_m + c.path_margin_m
-    if np.any(in_path):
-        front = min(front, float(np.min(x[in_path])))
-        ahead = in_path & (np.abs(b.a) <= FRONT_CONE_RAD)
-        if np.any(ahead):
-            cone = min(cone, float(np.min(x[ahead])))
-
     def side(k: int) -> tuple[bool, float, float | None]:
         perp_m = float(r[b.perp[k]] * b.perp_sin[k])
         is_open = not perp_m <= c.open_side_m
@@ -166,6 +169,15 @@ def perceive(
 
     l_open, l_dist, l_ang = side(0)
     r_open, r_dist, r_ang = side(1)
+    front_free = float(r[b.ahead])
+    front = cone = front_free
+    in_path = ok & (x > 0)
+    in_path &= np.abs(y) <= path_half_width_m(c, min(l_dist, r_dist))
+    if np.any(in_path):
+        front = min(front, float(np.min(x[in_path])))
+        ahead = in_path & (np.abs(b.a) <= FRONT_CONE_RAD)
+        if np.any(ahead):
+            cone = min(cone, float(np.min(x[ahead])))
     wall_angle = None  # only two parallel walls are trusted as a hallway's direction
     if l_ang is not None and r_ang is not None and abs(l_ang - r_ang) <= PARALLEL_RAD:
         wall_angle = 0.5 * (l_ang + r_ang)

@@ -92,6 +92,13 @@ class HallFollowerConfig:
                   "count as obstacles in the way [m]",
                   "live": True, "range": _NON_NEGATIVE},
     )
+    narrow_margin_m: float = field(
+        default=0.03,
+        metadata={"help": "where a side wall stands closer than robot_radius_m + path_margin_m "
+                  "(plus fit_tolerance_m), the path narrows to keep that wall's echoes out of "
+                  "it, down to robot_radius_m + this [m]",
+                  "live": True, "range": _NON_NEGATIVE},
+    )
     side_half_angle_deg: float = field(
         default=35.0,
         metadata={"help": "echoes within this of a side's perpendicular bearing are fitted as "
@@ -202,8 +209,8 @@ class HallFollowerConfig:
     def __post_init__(self) -> None:
         for f_name in (
             "cruise_speed_mps", "max_turn_rate_radps", "robot_radius_m", "stop_distance_m",
-            "slow_distance_m", "path_margin_m", "side_half_angle_deg", "fit_tolerance_m",
-            "open_side_m",
+            "slow_distance_m", "path_margin_m", "narrow_margin_m", "side_half_angle_deg",
+            "fit_tolerance_m", "open_side_m",
             "rearm_distance_m", "confirm_distance_m", "default_hall_width_m", "side_lag_m",
             "min_advance_m", "enter_distance_m", "straight_free_m", "k_lateral",
             "max_approach_deg", "k_heading", "turn_tolerance_deg", "min_turn_rate_radps",
@@ -240,7 +247,7 @@ class HallFollowerConfig:
         """The hallway perception these fields configure (shared with route following)."""
         return HallPerceptionConfig(self.robot_radius_m, self.path_margin_m,
                                     self.side_half_angle_deg, self.fit_tolerance_m,
-                                    self.open_side_m)
+                                    self.open_side_m, self.narrow_margin_m)
 
     @property
     def script_choices(self) -> tuple[TurnChoice, ...]:
