@@ -213,8 +213,8 @@ def test_the_builder_refuses_a_handover_it_cannot_take() -> None:
         plain.handover(0, 0, ControlStrategy(()))
     managed = IslandBuilder(BuilderConfig(), hooks=BuilderHooks(managed=True))
     managed.on_odometry(0.0, Pose2D(0.0, 0.0, 0.0), np.zeros((3, 3)))
-    with pytest.raises(BuilderError, match="only while idle"):
-        managed.on_docked(0, Pose2D(0.0, 0.0, 0.0))
+    with pytest.raises(BuilderError, match=r"unknown island 0 \(the builder has 0: \[\]\)"):
+        managed.on_docked(0, Pose2D(0.0, 0.0, 0.0))  # no island yet: said before the state
     assert managed.islands == [] or len(managed.islands) == 0
 
 

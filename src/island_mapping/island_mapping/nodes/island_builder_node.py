@@ -86,7 +86,6 @@ from island_mapping.core.explore import (
     Confirm,
     Docked,
     ExplorerConfig,
-    Handover,
     Reject,
     explorer_hooks,
 )
@@ -281,18 +280,11 @@ class IslandBuilderNode(Node):
         return response
 
     def _apply_request(self, r: mcv.ExplorerRequest) -> str:
-        """One request to the builder; BuilderError when it cannot take it (now)."""
+        """One request to the builder; BuilderError when it cannot take it (now: the core
+        names an unknown island or exit, or a state that cannot take it)."""
         if isinstance(r, Reject):
             self.builder.reject()
             return "held star rejected: its island is built"
-        if not isinstance(r, Abort):
-            known = {i.id: i for i in self.builder.islands}
-            if r.island_id not in known:
-                raise core.BuilderError(f"unknown island {r.island_id} (the builder has "
-                                        f"{len(known)}: {sorted(known)[:20]})")
-            if isinstance(r, Handover) and r.exit_index is not None and all(
-                    e.index != r.exit_index for e in known[r.island_id].exits):
-                raise core.BuilderError(f"island {r.island_id} has no exit {r.exit_index}")
         if isinstance(r, Docked):
             self.builder.on_docked(r.island_id, r.origin_odom)
             return f"docked at island {r.island_id}"

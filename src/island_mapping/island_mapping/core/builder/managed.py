@@ -166,11 +166,12 @@ class ManagedInputs(BuilderView):
     def _managed_island(self, what: str, island_id: int) -> Island:
         if not self.hooks.managed:
             raise BuilderError(f"{what}: the builder is not in managed mode")
+        found = [i for i in self.ledger.islands if i.id == island_id]
+        if not found:  # wrong whatever the state: said first
+            ids = sorted(i.id for i in self.ledger.islands)
+            raise BuilderError(f"{what}: unknown island {island_id} (the builder has "
+                               f"{len(ids)}: {ids[:20]})")
         if self._state is not State.IDLE or self._odom is None:
             raise BuilderError(f"{what}: only while idle (the builder is {self._state.value})")
-        found = [i for i in self.ledger.islands if i.id == island_id]
-        if not found:
-            raise BuilderError(f"{what}: unknown island {island_id} (the builder has "
-                               f"{len(self.ledger.islands)})")
         return found[0]
 
