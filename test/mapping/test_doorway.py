@@ -113,3 +113,42 @@ def test_pass_doorway_says_when_no_wall_is_met() -> None:
 def test_a_bad_doorway_config_names_the_field(field: str, value: object) -> None:
     with pytest.raises(ExploreError, match=field):
         dataclasses.replace(DoorwayConfig(), **{field: value})
+
+
+HALL_W = 0.77  # HouseExpo 1451's hallway behind its corner doorway [m]
+
+
+def _corner_house() -> World:
+    """A 3 x 3 m room (x 0..3, y 0..3) whose west doorway (0.70 m) starts 0.06 m from its
+    south-west corner, onto a 0.77 m hallway behind the 0.12 m wall (HouseExpo 1451's start
+    room), turned by TURN_RAD."""
+    lo, hi, t, back = 0.06, 0.76, WALL_T, -WALL_T - HALL_W
+    segs = [[0, 0, 3, 0], [3, 0, 3, 3], [3, 3, 0, 3],
+            [0, 0, 0, lo], [0, lo, -t, lo], [-t, lo, -t, -t],
+            [0, hi, 0, 3], [0, hi, -t, hi], [-t, hi, -t, 3],
+            [-t, -t, 3, -t], [back, -t - HALL_W, back, 4],
+            [back, -t - HALL_W, 3, -t - HALL_W], [-t, 3, -t, 4]]
+    turned = [[*_turn(a, b), *_turn(c, d)] for a, b, c, d in segs]
+    return World(np.array(turned, dtype=float), "corner house")
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_doorway_in_a_corner_is_passed_square_to_its_wall(seed: int) -> None:
+    """Seen from as far from both walls of the corner, the corner also fits a weaker wall
+    across it, nearer along the heading: the look must take the doorway's own wall, so the
+    robot passes square to it (into a hallway barely wider than itself)."""
+    world = _corner_house()
+    x, y = _turn(1.3, 1.29)
+    mx, my = _turn(0.0, 0.41)
+    start = Pose2D(x, y, 0.4)
+    heading = math.atan2(my - y, mx - x)  # ~34 deg off the wall's normal
+    setup = SimSetup(world=world)
+    rng = np.random.default_rng(seed)
+    robot = SimRobot(world, start, rng, setup.robot, setup.odometry, track_covariance=False)
+    sim = SimRunner(setup, robot, rng, NavigateConfig())
+    found = sim.run(pass_doorway(sim.drive, heading, DoorwayConfig(), 1.6, 0.6))
+    assert found
+    assert _room_x(robot) < -WALL_T - 0.2  # in the hallway
+    normal = TURN_RAD + math.pi
+    assert abs(math.degrees(math.remainder(robot.true_pose.theta - normal, 2 * math.pi))) < 15
+    assert robot.collisions == 0
