@@ -55,7 +55,6 @@ _RELOOK_BACK_M = 1.0  # a wall with no doorway seen is looked at again from this
 _MIN_USED = 8  # bins a wall's normal must be seen in [-]
 _LOCAL_MAX_BINS = 5  # a wall is a local maximum of inliers over this many normals each side
 _RELOOK_RAD = math.radians(45.0)  # a wall looked at again faces the exit this near [rad]
-_MIN_SHARE = 0.65  # a wall explains this share of the best wall's inliers at least [-]
 _MIN_COS = 0.26  # a wall met at more than ~75 deg from its normal is not met [-]
 _WIDTH_M = (0.5, 2.0)  # a doorway between two jambs seen is this wide [m]
 _CLEAR_AHEAD_M = 0.45  # past the doorway, an echo this near ahead ends the drive [m]
@@ -164,18 +163,16 @@ def _wall_at(p: Profile, n: float, near_m: tuple[float, float], cfg: DoorwayConf
 def fit_wall(p: Profile, around_rad: float, span_deg: float, near_m: tuple[float, float],
              cfg: DoorwayConfig) -> Wall | None:
     """Of the walls the profile shows (local maxima of inliers over normals within span_deg of
-    around_rad, at least min_inliers and _MIN_SHARE of the best one's, at a distance within
-    near_m), the one the ray along around_rad meets first; None if none. (Two walls meeting
-    in a corner also fit a weaker wall across the corner, nearer along a heading into it.)"""
+    around_rad, at least min_inliers, at a distance within near_m), the one the ray along
+    around_rad meets first; None if none."""
     span = math.radians(span_deg)
     normals = np.arange(around_rad - span, around_rad + span + 1e-9, _FIT_STEP_RAD)
     fits = [_wall_at(p, float(n), near_m, cfg) for n in normals]
     scores = np.array([f[0] for f in fits])
-    least = max(cfg.min_inliers, _MIN_SHARE * float(scores.max(initial=0)))
     best: tuple[float, Wall] | None = None
     for i, (score, dist) in enumerate(fits):
         lo, hi = max(0, i - _LOCAL_MAX_BINS), i + _LOCAL_MAX_BINS + 1
-        if score < least or score < scores[lo:hi].max():
+        if score < cfg.min_inliers or score < scores[lo:hi].max():
             continue
         c = math.cos(normals[i] - around_rad)
         meet = dist / c if c > _MIN_COS else math.inf
