@@ -27,6 +27,7 @@ from collections.abc import Generator
 from dataclasses import dataclass
 
 import numpy as np
+from island_msgs_py.geometry import wrap_angles
 from island_msgs_py.types import FloatArray, Pose2D, wrap_angle
 
 from island_mapping.core.explore.config import DoorwayConfig
@@ -92,9 +93,9 @@ class Doorway:
 
 
 def _front_m(d: Drive, half_rad: float = _FRONT_RAD) -> float:
-    a = np.asarray(d.sense.angles_rad, dtype=np.float64)
+    """The nearest echo within half_rad of the heading [m] (inf: none)."""
     r = np.asarray(d.sense.ranges_m, dtype=np.float64)
-    near = np.abs(np.arctan2(np.sin(a), np.cos(a))) <= half_rad
+    near = np.abs(wrap_angles(d.sense.angles_rad)) <= half_rad
     return float(np.min(r[near])) if np.any(near) else math.inf
 
 
@@ -118,9 +119,8 @@ def sweep(d: Drive, heading_rad: float, half_deg: float) -> Generator[Command, N
 
     def keep() -> None:
         a = np.asarray(d.sense.angles_rad, dtype=np.float64)
-        front = np.abs(np.arctan2(np.sin(a), np.cos(a))) <= _BEAM_RAD
-        rel = d.sense.odom.theta + a[front] - heading_rad
-        bearings.extend(np.arctan2(np.sin(rel), np.cos(rel)).tolist())
+        front = np.abs(wrap_angles(a)) <= _BEAM_RAD
+        bearings.extend(wrap_angles(d.sense.odom.theta + a[front] - heading_rad).tolist())
         ranges.extend(np.asarray(d.sense.ranges_m, dtype=np.float64)[front].tolist())
 
     keep()
