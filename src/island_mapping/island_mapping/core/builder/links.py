@@ -5,7 +5,9 @@ from a's origin, with its position and heading sigmas. `LinkGraph.chain` compose
 direction) into b's origin in a's frame along the chain with the smallest position sigma.
 
 The chain's cost is not a sum of fixed edge weights: a link's heading error turns every later
-link, so a step adds the heading sigma accumulated so far times its length. That is why this is
+link, so a step adds the heading sigma accumulated so far times its length. The links' errors
+are independent (each is measured on its own stretch of odometry), so sigmas add in quadrature:
+a chain's sigma is the root of the sum of its squared terms, not their sum. That is why this is
 a small Dijkstra of its own rather than networkx's, whose weights cannot depend on the path.
 """
 
@@ -50,7 +52,7 @@ class LinkGraph:
         """Island dst's origin in island src's frame through the links (either direction),
         the chain with the smallest position sigma; None when none joins them. A link's
         heading error turns every later link: sigma grows by the heading sigma so far times
-        each later link's length (first order)."""
+        each later link's length (first order); independent terms add in quadrature."""
         best = {src: 0.0}
         heap: list[tuple[float, int, int, Pose2D, float]] = [(0.0, 0, src, Pose2D(0, 0, 0), 0.0)]
         tie = 1
@@ -64,10 +66,11 @@ class LinkGraph:
                 if node not in (a, b):
                     continue
                 nxt, step = (b, link.pose) if a == node else (a, link.pose.inverse())
-                ns = sig + link.sigma_m + sig_th * math.hypot(step.x, step.y)
+                ns = math.sqrt(sig ** 2 + link.sigma_m ** 2
+                               + (sig_th * math.hypot(step.x, step.y)) ** 2)
                 if ns < best.get(nxt, math.inf):
                     best[nxt] = ns
-                    entry = (ns, tie, nxt, pose.compose(step), sig_th + link.sigma_rad)
+                    entry = (ns, tie, nxt, pose.compose(step), math.hypot(sig_th, link.sigma_rad))
                     heapq.heappush(heap, entry)
                     tie += 1
         return None
