@@ -12,18 +12,14 @@ the truth at that moment.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 from typing import Any
 
-import numpy as np
 from island_mapping.core.builder import IslandBuilder
 from island_mapping.core.builder.recognition import Recognizer
-from island_mapping.evaluation.explore_exits import explore_by_exits
-from island_mapping.evaluation.navigate import SimSetup
 from island_msgs_py.types import Island, Pose2D, wrap_angle
-from island_sim.core.world_loader import load_world
+from run import explore, parse
 
 NEAR_M = 2.5  # a star this near a known island's true origin is at its place [m]
 
@@ -36,11 +32,7 @@ def _true_island(islands: list[Island], truth: Pose2D) -> Island | None:
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__)
-    p.add_argument("world")
-    p.add_argument("seed", type=int)
-    p.add_argument("sim_seconds", type=float)
-    a = p.parse_args()
+    a = parse(__doc__)
     now: dict[str, Any] = {}
     ground_truth, recognize = IslandBuilder.on_ground_truth, Recognizer.recognize
 
@@ -68,8 +60,7 @@ def main() -> None:
 
     IslandBuilder.on_ground_truth = ground_truth_  # type: ignore[method-assign]
     Recognizer.recognize = recognize_  # type: ignore[method-assign]
-    run = explore_by_exits(SimSetup(world=load_world(a.world, None)), a.sim_seconds,
-                           rng=np.random.default_rng(a.seed))
+    run = explore(a)
     print(json.dumps({"islands": len(run.graph.islands())}))
 
 

@@ -8,26 +8,18 @@ and counts each scan (0.1 s) under (explorer state, who drives, builder state).
 
 from __future__ import annotations
 
-import argparse
 import collections
 from typing import Any
 
-import numpy as np
 from island_mapping.core.builder import IslandBuilder
 from island_mapping.core.explore import Explorer
-from island_mapping.evaluation.explore_exits import explore_by_exits
-from island_mapping.evaluation.navigate import SimSetup
-from island_sim.core.world_loader import load_world
+from run import explore, parse
 
 SCAN_S = 0.1  # simulated seconds per scan
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__)
-    p.add_argument("world")
-    p.add_argument("seed", type=int)
-    p.add_argument("sim_seconds", type=float)
-    a = p.parse_args()
+    a = parse(__doc__)
     spent: collections.Counter[tuple[str, str, str]] = collections.Counter()
     last: dict[str, Any] = {}
     command, step = IslandBuilder.command, Explorer.step
@@ -46,8 +38,7 @@ def main() -> None:
         return cmd
 
     IslandBuilder.command, Explorer.step = command_, step_  # type: ignore[method-assign]
-    explore_by_exits(SimSetup(world=load_world(a.world, None)), a.sim_seconds,
-                     rng=np.random.default_rng(a.seed))
+    explore(a)
     for key, s in spent.most_common():
         print(f"{s:8.0f} s  {key}")
 
