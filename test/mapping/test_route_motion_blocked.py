@@ -97,3 +97,28 @@ def test_a_jamb_heard_before_the_go_is_remembered(seed: int) -> None:
     assert got == pytest.approx(2.0, abs=0.05)
     assert robot.true_pose.x < 0.5  # through the door, into the room
     assert robot.collisions == 0
+
+
+@pytest.mark.parametrize(("y_m", "heading_deg", "seed"),
+                         [(0.24, 8.0, 1), (0.245, 0.0, 2), (-0.24, -8.0, 3), (0.2, 10.0, 1)])
+def test_a_go_touching_a_jamb_the_ring_cannot_hear_moves_off_it(
+        y_m: float, heading_deg: float, seed: int) -> None:
+    """The robot stands in a 1 m door's passage touching a jamb (an island's origin there:
+    paper_fig4 seed 3, island 5, 0.25 m off the door's middle), nearer than the sonar's
+    shortest range, so only the other jamb echoes and centring steers it onto the one it
+    touches. Backing off onto the same lane touched again until the Go stopped in the door
+    (the route failed there six times, 1900 s of the run); after a contact it moves its lane
+    away from the side touched and drives through."""
+    from island_mapping.evaluation.navigate import SimRunner, SimSetup
+    from island_sim.core.robot import SimRobot
+    from island_sim.core.world import World
+
+    setup = SimSetup(world=World(DOOR_ROOM, "door"))
+    rng = np.random.default_rng(seed)
+    robot = SimRobot(setup.world, Pose2D(0.9, y_m, math.radians(heading_deg)), rng,
+                     setup.robot, setup.odometry, track_covariance=False)
+    sim = SimRunner(setup, robot, rng, NavigateConfig())
+    got = sim.run(go_along_hall(sim.drive, 2.0, remember=True))
+    assert got == pytest.approx(2.0, abs=0.05)
+    assert robot.true_pose.x > 2.0  # through the door, into the hallway
+    assert robot.collisions <= 3

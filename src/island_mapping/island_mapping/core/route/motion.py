@@ -60,6 +60,12 @@ _PATH_HALF_WIDTH_M = 0.35
 _JAMB_CLEAR_M = 1.0
 # Approach angle per metre off a jamb's lane [rad/m].
 _JAMB_GAIN_RAD_PER_M = 4.0
+# After a contact the lane moves this far away from the side touched [m]: a wall the ring did
+# not hear is within the robot's radius of its centre, nearer than the sonar's shortest range.
+_CONTACT_SHIFT_M = 0.15
+# Turned more than this off the hallway's direction at a contact, the robot touched on the side
+# it was turned to [rad]; nearer straight on, the side touched is the one without a wall heard.
+_CONTACT_TURN_RAD = math.radians(2.0)
 # Scans whose echoes a Drive remembers (a specular ring hears a jamb's corner on one bearing
 # only, now and then; 10 Hz scans) [-].
 _RECENT_SCANS = 50
@@ -203,6 +209,7 @@ def go_along_hall(d: Drive, distance_m: float, *, remember: bool = False
     max_app = math.radians(c.max_approach_deg)
     backoffs = 0
     jamb_until_m, lane = 0.0, 0.0  # travel [m] up to which a jamb's lane [m] is kept
+    touched_until_m = 0.0  # travel [m] up to which a contact's lane is kept, jambs or not
     start = last
     while travelled < distance_m - _GO_DONE_M:
         p = perceive(d.sense.ranges_m, d.sense.angles_rad, d.perception)
@@ -223,7 +230,8 @@ def go_along_hall(d: Drive, distance_m: float, *, remember: bool = False
                 p.wall_angle_rad) < _WALL_TRUST_RAD:  # a doorway's jambs are too short
             hold = wrap_angle(o.theta + p.wall_angle_rad)
         side = o.relative_to(start).y  # across the way the Go started [m]
-        if jamb is not None:  # the lane that clears it, kept after the sonar loses the jamb
+        if jamb is not None and travelled >= touched_until_m:  # the lane that clears it,
+            # kept after the sonar loses the jamb
             want = side + jamb
             if travelled < jamb_until_m and (want - lane) * jamb < 0.0:
                 want = lane  # a lane further away is kept
@@ -233,7 +241,8 @@ def go_along_hall(d: Drive, distance_m: float, *, remember: bool = False
         if gap is None and travelled < jamb_until_m:  # the lane, firmly: a jamb is cm off
             offset, gain = lane - side, _JAMB_GAIN_RAD_PER_M
         approach = float(np.clip(gain * offset, -max_app, max_app))
-        if jamb is not None and not remember:  # past it, turned away as far as allowed
+        if jamb is not None and not remember and travelled >= touched_until_m:  # past it,
+            # turned away as far as allowed
             approach = math.copysign(max_app, jamb)
         err = wrap_angle(hold + approach - o.theta)
         remaining = distance_m - travelled
@@ -244,12 +253,29 @@ def go_along_hall(d: Drive, distance_m: float, *, remember: bool = False
             if backoffs >= c.contact_retries:
                 break
             backoffs += 1
+            away = _contact_away(p, wrap_angle(o.theta - hold))
             yield from _back_off(d, c.contact_backoff_m)
+            if away != 0.0:  # the same lane would touch again
+                touched_until_m = jamb_until_m = travelled + _JAMB_CLEAR_M
+                lane = side + away * _CONTACT_SHIFT_M
         now = d.sense.odom
         travelled += math.hypot(now.x - last.x, now.y - last.y)
         last = now
     yield from step(d, 0.0, 0.0)
     return travelled
+
+
+def _contact_away(p: Perception, turned_rad: float) -> float:
+    """Which way (1 left, -1 right, 0 unknown) to move off a wall touched while driving
+    forward: away from the side the robot was turned to (`turned_rad`, its heading off the
+    hallway's, left positive), or, driving straight on, away from the side no wall was heard
+    on (a wall nearer than the sonar's shortest range is silent)."""
+    if abs(turned_rad) > _CONTACT_TURN_RAD:
+        return -math.copysign(1.0, turned_rad)
+    left, right = math.isfinite(p.left_dist_m), math.isfinite(p.right_dist_m)
+    if left == right:
+        return 0.0
+    return -1.0 if not left else 1.0
 
 
 def _lateral_offset(p: Perception, half_width: float, gap: float | None, one_wall: bool,
