@@ -4,10 +4,11 @@
 
 Wraps `Recognizer.recognize` from outside (its answer is returned unchanged). At each star
 whose true position lies within NEAR_M of a known island's true origin, one JSON line: the
-island truly there, the one recognized (or None), the look-alike hypotheses, and each of
-the recognizer's estimates of that island's origin as (error [m], error [deg], claimed
-sigma [m], claimed sigma [deg]), the error against the origin put in the odometry frame by
-the truth at that moment.
+island truly there, the one recognized (or None), the look-alike hypotheses, the refusals
+this recognition counted (reason: count, any candidate), and each of the recognizer's
+estimates of that island's origin as (error [m], error [deg], claimed sigma [m], claimed
+sigma [deg]), the error against the origin put in the odometry frame by the truth at that
+moment.
 """
 
 from __future__ import annotations
@@ -42,7 +43,10 @@ def main() -> None:
 
     def recognize_(self: Recognizer, points: Any, at: Pose2D, snap: Any, islands: Any,
                    star: bool = False) -> Any:
+        before = dict(self.diagnostics.revisit_refusals)
         out = recognize(self, points, at, snap, islands, star)
+        refused = {k: v - before.get(k, 0) for k, v in self.diagnostics.revisit_refusals.items()
+                   if v != before.get(k, 0)}
         truth, builder = now["truth"], now["builder"]
         island = _true_island(list(islands), truth) if star else None
         if island is None or island.origin_truth is None:
@@ -55,6 +59,7 @@ def main() -> None:
         print(json.dumps({"t": round(builder._t, 1), "true": island.id,  # noqa: SLF001
                           "recognized": None if out is None else out.island_id,
                           "look_alikes": [h.island_id for h in self.hypotheses],
+                          "refused": refused,
                           "last": snap.last_island_id, "estimates": ests}), flush=True)
         return out
 
