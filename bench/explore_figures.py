@@ -41,7 +41,8 @@ def main() -> None:
                     "world", "policy", "seed", "covered_places", "known_places", "places",
                     "covered_junctions", "junctions", "islands", "islands_per_place",
                     "false_merges", "missed_closures",
-                    "map_cycle_rank", "world_cycle_rank", "route_success_rate",
+                    "map_cycle_rank", "map_place_cycle_rank", "world_cycle_rank",
+                    "route_success_rate",
                     "route_length_ratio_mean", "wall_contacts", "false_arrivals",
                     "ended_by_itself", "sim_seconds", "explore_wall_s", "load_avg_1m")}),
                     flush=True)

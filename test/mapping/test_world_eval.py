@@ -138,6 +138,28 @@ def test_map_cycle_rank_counts_distinct_undirected_edges() -> None:
     assert map_cycle_rank(loop) == 1  # island 3 alone is a component, not a loop
 
 
+def test_a_duplicates_out_and_back_is_a_cycle_of_the_map_not_a_loop_of_the_world() -> None:
+    """On the T (no loop): islands 1 and 2 both at the west end, each linked to the
+    junction's island 0 and to each other (paper_fig4 seed 3 counted 4 cycles against the
+    world's 3, three of them through two islands on one place). The map has cycle rank 1;
+    with the islands of one place as one node, 0."""
+    world = load_world("t_junction")
+    places = world_places(world)
+    graph = TopoGraph.from_parts(
+        [_island(0, 10.5, 1.2), _island(1, 2.0, 1.0), _island(2, 2.5, 1.0),
+         _island(3, 10.0, 10.5)],
+        [_edge(0, 1), _edge(2, 0), _edge(1, 2), _edge(0, 3)])
+    ev = evaluate_map(world, places, graph, [])
+    assert (ev.map_cycle_rank, ev.map_place_cycle_rank, ev.world_cycle_rank) == (1, 0, 0)
+    d = ev.to_dict()
+    assert (d["map_cycle_rank"], d["map_place_cycle_rank"]) == (1, 0)
+    loop = TopoGraph.from_parts(
+        [_island(0, 10.5, 1.2), _island(1, 2.0, 1.0), _island(3, 10.0, 10.5)],
+        [_edge(0, 1), _edge(1, 3), _edge(3, 0)])  # three places in a loop: counted by both
+    ev = evaluate_map(world, places, loop, [])
+    assert (ev.map_cycle_rank, ev.map_place_cycle_rank) == (1, 1)
+
+
 def test_route_length_ratio_against_the_true_shortest_path() -> None:
     world = load_world("corridor")
     graph = TopoGraph.from_parts([_island(0, 2.0, 1.0), _island(1, 15.0, 1.0, math.pi)],

@@ -47,7 +47,8 @@ from island_mapping.evaluation.world_eval import (
 
 SUMMARY_FIGURES = ("places", "junctions", "coverage", "junction_coverage", "known_places",
                    "islands",
-                   "islands_per_place", "false_merges", "map_cycle_rank", "world_cycle_rank",
+                   "islands_per_place", "false_merges", "map_cycle_rank",
+                   "map_place_cycle_rank", "world_cycle_rank",
                    "route_success_rate", "route_length_ratio_mean")
 """The figures printed on stdout (evaluation.json has all of them)."""
 

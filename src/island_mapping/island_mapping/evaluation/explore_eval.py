@@ -39,8 +39,8 @@ HEADLINE = ("places", "covered_places", "coverage", "junctions", "covered_juncti
             "junction_coverage", "known_places", "known_junctions", "islands",
             "islands_per_place", "islands_off_places",
             "false_merges", "missed_closures", "revisits", "map_cycle_rank",
-            "world_cycle_rank", "routes", "route_success_rate", "route_length_ratio_mean",
-            "route_length_ratio_max")
+            "map_place_cycle_rank", "world_cycle_rank", "routes", "route_success_rate",
+            "route_length_ratio_mean", "route_length_ratio_max")
 """The world-evaluation figures a measurement reports."""
 
 

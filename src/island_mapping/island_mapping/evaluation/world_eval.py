@@ -21,7 +21,9 @@ robot's true pose at each, and the island pairs whose routes were followed. Figu
   where the island's origin truly was *according to that recognition*. More than 3 m from the
   island's own true origin is a false merge (one island standing for two places);
 - **cycle rank** of the map (undirected, distinct edges: E - V + components) against the
-  world's (holes of its reachable free space);
+  world's (holes of its reachable free space), and the same with the islands at one place as
+  one node (`map_place_cycle_rank`: the rank with the duplicates merged; neither counts the
+  world's loops the map closes);
 - **routes**: success of the followed routes (from the route evaluation), and the length of
   each planned route by the map (sum of its edges' length_m) against the shortest path between
   the two islands' true origins through the free space (no ratio for two islands at one place,
@@ -127,6 +129,7 @@ class MapEvaluation:
     false_merges: tuple[FalseMerge, ...]
     revisits: int
     map_cycle_rank: int
+    map_place_cycle_rank: int  # the islands on one place counted as one node
     world_cycle_rank: int
     routes: tuple[RouteLength, ...]
     place_xy: tuple[tuple[str, float, float], ...]  # per place: kind, x [m], y [m]
@@ -206,6 +209,7 @@ class MapEvaluation:
             "missed_closures": self.missed_closures,
             "false_merge_events": [asdict(f) for f in self.false_merges],
             "map_cycle_rank": self.map_cycle_rank,
+            "map_place_cycle_rank": self.map_place_cycle_rank,
             "world_cycle_rank": self.world_cycle_rank,
             "routes": len(self.routes),
             "route_success_rate": num(self.route_success_rate),
@@ -326,6 +330,21 @@ def map_cycle_rank(graph: TopoGraph) -> int:
     return g.number_of_edges() - g.number_of_nodes() + nx.number_connected_components(g)
 
 
+def map_place_cycle_rank(graph: TopoGraph, island_place: Mapping[int, int | None]) -> int:
+    """`map_cycle_rank` with the islands at one world place (`island_places`) as one node:
+    an edge out to a duplicate and one back from it make a cycle of the map, not a loop of
+    the world, and an edge within one place is no edge."""
+    def node(i: int) -> tuple[str, int]:
+        p = island_place.get(i)
+        return ("island", i) if p is None else ("place", p)
+
+    g: nx.Graph[tuple[str, int]] = nx.Graph()
+    g.add_nodes_from(node(i) for i in graph.island_ids())
+    g.add_edges_from((node(e.source), node(e.target)) for e in graph.iter_edges()
+                     if node(e.source) != node(e.target))
+    return g.number_of_edges() - g.number_of_nodes() + nx.number_connected_components(g)
+
+
 def route_lengths(graph: TopoGraph, places: WorldPlaces, origins: Mapping[int, Pose2D],
                   pairs: Sequence[tuple[int, int, bool | None]],
                   snap_m: float, min_route_m: float = 0.0) -> list[RouteLength]:
@@ -368,15 +387,17 @@ def evaluate_map(world: World, places: WorldPlaces, graph: TopoGraph,
     revisits = revisits_from_events(events)
     covered = covered_places(world, places, origins.values(), c.cover_radius_m)
     by_exits = covered_places(world, places, side_exit_openings(graph), c.cover_radius_m)
+    at_place = island_places(world, places, origins, c.cover_radius_m)
     return MapEvaluation(
         places=len(places.places),
         junctions=len(places.junctions),
         covered=covered,
         islands=len(graph),
-        island_place=island_places(world, places, origins, c.cover_radius_m),
+        island_place=at_place,
         false_merges=tuple(false_merges(origins, revisits, c.false_merge_m)),
         revisits=len(revisits),
         map_cycle_rank=map_cycle_rank(graph),
+        map_place_cycle_rank=map_place_cycle_rank(graph, at_place),
         world_cycle_rank=places.cycle_rank,
         routes=tuple(route_lengths(graph, places, origins, route_pairs, c.path_snap_m,
                                    c.min_route_m)),
