@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections import Counter
 from typing import Any
 
 from island_mapping.core.builder import IslandBuilder
@@ -43,10 +44,9 @@ def main() -> None:
 
     def recognize_(self: Recognizer, points: Any, at: Pose2D, snap: Any, islands: Any,
                    star: bool = False) -> Any:
-        before = dict(self.diagnostics.revisit_refusals)
+        before = Counter(self.diagnostics.revisit_refusals)
         out = recognize(self, points, at, snap, islands, star)
-        refused = {k: v - before.get(k, 0) for k, v in self.diagnostics.revisit_refusals.items()
-                   if v != before.get(k, 0)}
+        refused = dict(Counter(self.diagnostics.revisit_refusals) - before)
         truth, builder = now["truth"], now["builder"]
         island = _true_island(list(islands), truth) if star else None
         if island is None or island.origin_truth is None:

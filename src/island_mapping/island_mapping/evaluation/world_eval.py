@@ -33,7 +33,7 @@ robot's true pose at each, and the island pairs whose routes were followed. Figu
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Hashable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -322,11 +322,14 @@ def false_merges(origins: Mapping[int, Pose2D], revisits: Iterable[Revisit],
     return out
 
 
-def map_cycle_rank(graph: TopoGraph) -> int:
-    """Independent cycles of the map as an undirected graph on distinct edges."""
-    g: nx.Graph[int] = nx.Graph()
-    g.add_nodes_from(graph.island_ids())
-    g.add_edges_from((e.source, e.target) for e in graph.iter_edges())
+def map_cycle_rank(graph: TopoGraph, node: Callable[[int], Hashable] = lambda i: i) -> int:
+    """Independent cycles of the map as an undirected graph on distinct edges, each island
+    counted as the node `node(island id)` (default: itself; edges within one node dropped)."""
+    nodes = {i: node(i) for i in graph.island_ids()}
+    g: nx.Graph[Hashable] = nx.Graph()
+    g.add_nodes_from(nodes.values())
+    g.add_edges_from((a, b) for e in graph.iter_edges()
+                     if (a := nodes[e.source]) != (b := nodes[e.target]))
     return g.number_of_edges() - g.number_of_nodes() + nx.number_connected_components(g)
 
 
@@ -338,11 +341,7 @@ def map_place_cycle_rank(graph: TopoGraph, island_place: Mapping[int, int | None
         p = island_place.get(i)
         return ("island", i) if p is None else ("place", p)
 
-    g: nx.Graph[tuple[str, int]] = nx.Graph()
-    g.add_nodes_from(node(i) for i in graph.island_ids())
-    g.add_edges_from((node(e.source), node(e.target)) for e in graph.iter_edges()
-                     if node(e.source) != node(e.target))
-    return g.number_of_edges() - g.number_of_nodes() + nx.number_connected_components(g)
+    return map_cycle_rank(graph, node)
 
 
 def route_lengths(graph: TopoGraph, places: WorldPlaces, origins: Mapping[int, Pose2D],
