@@ -15,14 +15,19 @@ from island_mapping.core.builder.diagnostics import Refusal
 from island_mapping.core.builder.hooks import BuilderHooks
 from island_mapping.core.builder.recognition import PoseSnapshot, Recognition, Recognizer
 from island_mapping.core.explore import (
+    Abort,
+    Docked,
     ExitConfig,
     ExitEvidence,
     ExploreError,
     ExplorerConfig,
     NoveltyConfig,
+    Reject,
+    apply_to_builder,
     arrival_exit,
     explorer_hooks,
     find_exits,
+    is_builder_request,
     known_space_costs,
     nearest_unexplored,
     route_edges,
@@ -37,6 +42,7 @@ from island_msgs_py.types import (
     Exit,
     ExitSide,
     ExitState,
+    ExitUpdate,
     Island,
     LineModel,
     ModelType,
@@ -216,6 +222,28 @@ def test_the_builder_refuses_a_handover_it_cannot_take() -> None:
     with pytest.raises(BuilderError, match=r"unknown island 0 \(the builder has 0: \[\]\)"):
         managed.on_docked(0, Pose2D(0.0, 0.0, 0.0))  # no island yet: said before the state
     assert managed.islands == [] or len(managed.islands) == 0
+
+
+def test_the_builders_requests_take_effect_or_are_refused_by_name() -> None:
+    """One dispatch (the builder node's and the offline harness's): a request the builder
+    cannot take, or one for the map, is refused with a reason and changes nothing (the
+    requests it takes are driven by the exploration tests)."""
+    managed = IslandBuilder(BuilderConfig(), hooks=BuilderHooks(managed=True))
+    managed.on_odometry(0.0, Pose2D(0.0, 0.0, 0.0), np.zeros((3, 3)))
+    state = managed.state
+    with pytest.raises(BuilderError, match=rf"cannot give the robot back: it is busy \({state}\)"):
+        apply_to_builder(managed, Abort())  # no island yet: the builder drives to make one
+    with pytest.raises(BuilderError, match="unknown island 3"):
+        apply_to_builder(managed, Docked(3, Pose2D(0.0, 0.0, 0.0)))
+    with pytest.raises(BuilderError, match="no decision is held"):
+        apply_to_builder(managed, Reject())
+    with pytest.raises(BuilderError, match="ExitUpdate is a request for the map"):
+        apply_to_builder(managed, ExitUpdate(0, 0, ExitState.BLOCKED))
+    assert not is_builder_request(ExitUpdate(0, 0, ExitState.BLOCKED))
+    assert managed.state == state and len(managed.islands) == 0
+    plain = IslandBuilder(BuilderConfig())
+    with pytest.raises(BuilderError, match="not in managed mode"):
+        apply_to_builder(plain, Abort())
 
 
 def test_exploration_ends_by_itself_in_a_small_world_with_every_exit_explored() -> None:

@@ -85,6 +85,7 @@ def _exits(setup: SimSetup, sim_s: float, rng: np.random.Generator, start: Pose2
              "arrivals": len(run.arrivals), "explorer": run.explorer_counts,
              "unanswered_scans": run.unanswered_scans, "calibration": run.calibration,
              "revisit_refusals": run.revisit_refusals,
+             "refused_requests": dict(Counter(r.split(":")[0] for r in run.refused_requests)),
              **_heading_drift(run.truth_path, run.odom_path),
              "exits_left": sum(e.state.value == "unexplored" for i in run.graph.islands()
                                for e in i.exits)}

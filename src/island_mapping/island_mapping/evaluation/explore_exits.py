@@ -25,6 +25,7 @@ from island_sim.core.sonar import SonarModel
 
 from island_mapping.core.builder import (
     BuilderConfig,
+    BuilderError,
     BuilderEvent,
     CommandMode,
     IslandBuilder,
@@ -32,15 +33,13 @@ from island_mapping.core.builder import (
 )
 from island_mapping.core.builder.hooks import graph_items
 from island_mapping.core.explore import (
-    Abort,
-    Confirm,
-    Docked,
     Explorer,
     ExplorerConfig,
-    Handover,
-    Reject,
+    FollowerAction,
+    apply_to_builder,
     explorer_hooks,
 )
+from island_mapping.core.explore.requests import Request
 from island_mapping.core.graph import TopoGraph
 from island_mapping.core.route import Fix, NavigateConfig, Sense
 from island_mapping.evaluation.navigate import SimSetup
@@ -90,6 +89,7 @@ class ExitsRun:
     revisit_refusals: dict[str, int] = field(default_factory=dict)
     origins_odom: dict[int, Pose2D] = field(default_factory=dict)
     calibration: dict[str, float | int] = field(default_factory=dict)
+    refused_requests: list[str] = field(default_factory=list)  # the builder's reasons
 
     @property
     def false_arrivals(self) -> int:
@@ -169,6 +169,7 @@ def explore_by_exits(
     truth, odom = list[FloatArray](), list[FloatArray]()  # one pose per scan each
     unanswered = 0
     contacts: list[tuple[float, float, float, str]] = []
+    refused: list[str] = []
     builder.on_odometry(0.0, robot.odom_pose, robot.odom_covariance)
     builder.on_ground_truth(robot.true_pose)
     blocked = False
@@ -196,18 +197,14 @@ def explore_by_exits(
             unanswered += 1
         who = ("explorer" if ecmd.drive else "builder" if cmd.mode is CommandMode.DRIVE
                else "follower")
-        if _apply_requests(ecmd.requests, builder, graph):
+        if _apply_requests(ecmd.requests, builder, graph, refused):
             # a fresh follower per handover: nothing of its last stretch (hallway axis, stall
             # timer, pending turn) carries over to the exit it is handed
             follower = HallFollower(fcfg, follower_rng)
         truth.append(robot.true_pose.as_array())
         odom.append(robot.odom_pose.as_array())
-        blocked = False
         before = robot.collisions
-        for _ in range(steps):
-            blocked |= robot.step(v, w, dt).blocked
-            builder.on_odometry(robot.time_s, robot.odom_pose, robot.odom_covariance)
-            builder.on_ground_truth(robot.true_pose)
+        blocked = _advance(robot, builder, v, w, steps, dt)
         if robot.collisions > before:
             contacts.append((round(t, 1), round(robot.true_pose.x, 2), round(robot.true_pose.y, 2),
                              who))
@@ -216,7 +213,19 @@ def explore_by_exits(
     return ExitsRun(graph, events, np.array(truth).reshape(-1, 3), np.array(odom).reshape(-1, 3),
                     robot.collisions, judge.checks, dict(explorer.counts), explorer.done,
                     robot.time_s, unanswered, contacts, dict(builder.revisit_refusals),
-                    dict(builder.island_origins_odom), builder.calibration)
+                    dict(builder.island_origins_odom), builder.calibration, refused)
+
+
+def _advance(robot: SimRobot, builder: IslandBuilder, v: float, w: float, steps: int,
+             dt: float) -> bool:
+    """Drive the robot `steps` physics steps of dt [s] at (v [m/s], w [rad/s]), the builder
+    hearing odometry and the truth after each; was it blocked by a wall in any?"""
+    blocked = False
+    for _ in range(steps):
+        blocked |= robot.step(v, w, dt).blocked
+        builder.on_odometry(robot.time_s, robot.odom_pose, robot.odom_covariance)
+        builder.on_ground_truth(robot.true_pose)
+    return blocked
 
 
 def _record(new: tuple[BuilderEvent, ...], graph: TopoGraph, truth: Pose2D,
@@ -245,26 +254,23 @@ def _trace(trace: list[dict[str, Any]], explorer: Explorer, robot: SimRobot,
                       "requests": [repr(r) for r in requests]})
 
 
-def _apply_requests(requests: tuple[object, ...], builder: IslandBuilder, graph: TopoGraph
-                    ) -> bool:
-    """The explorer's requests, as the builder and graph server nodes would take them; True
+def _apply_requests(requests: tuple[Request, ...], builder: IslandBuilder, graph: TopoGraph,
+                    refused: list[str]) -> bool:
+    """The explorer's requests, as the builder and graph server nodes take them (one the
+    builder refuses is dropped with its reason in `refused`, as the node refuses it); True
     when the robot was handed over (the follower starts afresh)."""
     handed = False
     for r in requests:
-        if isinstance(r, Docked):
-            builder.on_docked(r.island_id, r.origin_odom)
-        elif isinstance(r, Handover):
-            builder.handover(r.island_id, r.exit_index, r.prefix)
-            handed = True
-        elif isinstance(r, Abort):
-            builder.abort()
-        elif isinstance(r, Confirm):
-            builder.confirm(r.island_id)
-        elif isinstance(r, Reject):
-            builder.reject()
-        elif isinstance(r, ExitUpdate):
+        if isinstance(r, ExitUpdate):
             graph.apply_exit_update(r)
         elif isinstance(r, NewExit):
             graph.add_exit(r)
+        else:
+            try:
+                done = apply_to_builder(builder, r)
+            except BuilderError as exc:
+                refused.append(str(exc))
+                continue
+            handed = handed or done.follower is FollowerAction.RESTART
     return handed
 

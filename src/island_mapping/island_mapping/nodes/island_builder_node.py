@@ -82,11 +82,9 @@ from island_mapping.core.builder.inputs import (
     feed,
 )
 from island_mapping.core.explore import (
-    Abort,
-    Confirm,
-    Docked,
     ExplorerConfig,
-    Reject,
+    FollowerAction,
+    apply_to_builder,
     explorer_hooks,
 )
 from island_mapping.core.graph import TopoGraph
@@ -280,26 +278,14 @@ class IslandBuilderNode(Node):
         return response
 
     def _apply_request(self, r: mcv.ExplorerRequest) -> str:
-        """One request to the builder; BuilderError when it cannot take it (now: the core
-        names an unknown island or exit, or a state that cannot take it)."""
-        if isinstance(r, Reject):
-            self.builder.reject()
-            return "held star rejected: its island is built"
-        if isinstance(r, Docked):
-            self.builder.on_docked(r.island_id, r.origin_odom)
-            return f"docked at island {r.island_id}"
-        if isinstance(r, Confirm):
-            self.builder.confirm(r.island_id)
-            return f"held star confirmed at island {r.island_id}"
-        if isinstance(r, Abort):
-            if not self.builder.abort():
-                raise core.BuilderError(f"abort: the builder is busy ({self.builder.state}); "
-                                        "ask again")
+        """One request to the builder (`core.explore.apply_to_builder`); BuilderError when it
+        cannot take it."""
+        done = apply_to_builder(self.builder, r)
+        if done.follower is FollowerAction.STOP:
             self._set_follower(False)
-            return "following stopped"
-        self.builder.handover(r.island_id, r.exit_index, r.prefix)
-        self._restart_follower()  # the edge's record starts at the handover
-        return f"handed over at island {r.island_id} by exit {r.exit_index}"
+        elif done.follower is FollowerAction.RESTART:
+            self._restart_follower()
+        return done.message
 
     def _on_reset(self, fut: Any, resume: bool = True) -> None:
         """The follower's record restarted (it refuses while following: say so); resume it."""

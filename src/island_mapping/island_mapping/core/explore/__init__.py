@@ -15,12 +15,20 @@ Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public
 - `Explorer` (mission: one step per scan); `ExplorerCommand`, `ExplorerState`,
   `ExplorerStatus`, `Docked`, `Handover`, `Abort`, `Confirm`, `Reject` (requests: what it says
   and asks);
+- `apply_to_builder`, `is_builder_request`, `Applied`, `FollowerAction` (the requests as the
+  builder takes them: one dispatch for the builder node and the offline harness);
 - `rehearse` (more evidence for a held star: a known island's edge driven to its neighbour);
 - `explorer_hooks`, `arrival_agrees`, `loop_closure_gate`, `loop_closure_hooks` (the builder
   hooks an explorer installs; the loop closure's gate and topological evidence; the loop
   closure alone, as a recording's passive mode installs it).
 """
 
+from island_mapping.core.explore.apply import (
+    Applied,
+    FollowerAction,
+    apply_to_builder,
+    is_builder_request,
+)
 from island_mapping.core.explore.config import (
     DoorwayConfig,
     ExitConfig,
@@ -71,6 +79,7 @@ from island_mapping.core.explore.requests import (
 
 __all__ = [
     "Abort",
+    "Applied",
     "Confirm",
     "DeparturePlan",
     "Docked",
@@ -83,10 +92,12 @@ __all__ = [
     "ExplorerConfig",
     "ExplorerState",
     "ExplorerStatus",
+    "FollowerAction",
     "Handover",
     "NoveltyConfig",
     "Reject",
     "Target",
+    "apply_to_builder",
     "arrival_agrees",
     "arrival_exit",
     "choose_lane",
@@ -96,6 +107,7 @@ __all__ = [
     "free_lanes",
     "gate",
     "go_clear",
+    "is_builder_request",
     "known_space_costs",
     "loop_closure_gate",
     "loop_closure_hooks",
