@@ -7,7 +7,8 @@ and sums the simulated seconds of each (go_to the hypothesis' origin, localize_a
 execute_strategy of a trial edge or its reverse, look_scans), then prints each rehearsal's
 island, outcome, edges driven, length, and against the truth how far the hypothesis put the
 robot from where it stood (under ~1 m: the hypothesis was right, a failed rehearsal a missed
-loop closure).
+loop closure) and, when confirmed, how far the robot stands from the true origin of the
+neighbour it docked at.
 """
 
 from __future__ import annotations
@@ -41,6 +42,18 @@ def main() -> None:
 
     for name in ("go_to", "localize_and_dock", "execute_strategy", "look_scans"):
         setattr(rh, name, timed(name, getattr(rh, name)))
+    looks: list[str] = []
+    found = rh._found  # noqa: SLF001
+
+    def found_(d: Any, island: Any, fix: Any, cfg: Any) -> Generator[Any, None, bool]:
+        ok = yield from found(d, island, fix, cfg)
+        at = ("-" if fix.origin_odom is None else
+              f"{math.dist(d.sense.odom.as_array()[:2], fix.origin_odom.as_array()[:2]):.2f} m")
+        looks.append(f"{island.id}:{'found' if ok else 'not'}"
+                     f"(trusted {fix.trusted}, {at} from its origin)")
+        return ok
+
+    rh._found = found_  # type: ignore[assignment]  # noqa: SLF001
     rehearse, robots = rh.rehearse, []
     sim_robot = harness.SimRobot
 
@@ -56,10 +69,18 @@ def main() -> None:
         truth = graph.get_island(hyp.island_id).origin_truth
         off = (float("nan") if truth is None else math.dist(
             truth.compose(hyp.pose).as_array()[:2], robots[-1].true_pose.as_array()[:2]))
+        looks.clear()
         got = yield from rehearse(d, graph, hyp, *args, **kw)
+        end = "; looks " + ", ".join(looks)
+        if got.confirmed and got.trial is not None:
+            there = graph.get_island(got.trial.neighbour).origin_truth
+            if there is not None:
+                end += (f", docked at island {got.trial.neighbour} "
+                       f"{math.dist(there.as_array()[:2], robots[-1].true_pose.as_array()[:2]):.2f}"
+                       " m from its true origin")
         episodes.append(f"island {hyp.island_id:3d}  {'confirmed' if got.confirmed else 'not'}"
                         f"  {calls['execute_strategy'] - before} edge drives"
-                        f"  {d.sense.t_s - t0:6.1f} s  hypothesis {off:5.2f} m off the truth")
+                        f"  {d.sense.t_s - t0:6.1f} s  hypothesis {off:5.2f} m off the truth{end}")
         return got
 
     rh.rehearse = rehearse_  # type: ignore[assignment]

@@ -99,7 +99,7 @@ def _model(origin: Pose2D) -> LineModel:
     return LineModel(np.array(out))
 
 
-def _map() -> TopoGraph:
+def _map(onward: bool = False) -> TopoGraph:
     """Island 0 at the dead end, island 1 at the western T (an edge 0 -> 1: 5.5 m east, a
     quarter turn left, 1.6 m north), island 2 at the east end with one unexplored exit
     (west), island 3 at the western branch's end (an edge 1 -> 3: 6 m north). The eastern T
@@ -111,6 +111,9 @@ def _map() -> TopoGraph:
                Island(3, _model(WEST_BRANCH_END), ModelType.LINE, 1.0, 0.0)]
     edges = [Edge(0, 1, ControlStrategy.parse("Go 550, Rot 90, Go 160"), 7.1, 7.1, 0.1),
              Edge(1, 3, ControlStrategy.parse("Go 600"), 6.0, 6.0, 0.1)]
+    if onward:  # the branch's end straight to the dead end, past the T (onward: 3 -> 0)
+        edges.append(Edge(3, 0, ControlStrategy.parse("Rot 180, Go 760, Rot 270, Go 550, "
+                                                      "Rot 180"), 13.1, 13.1, 0.1))
     return TopoGraph.from_parts(islands, edges)
 
 
@@ -134,14 +137,16 @@ class SimBody:
             self.robot.step(v, w, 0.02)
 
 
-def _rehearse_from(stop_at: Pose2D, neighbours: int = 2) -> tuple[list[object], SimBody]:
+def _rehearse_from(stop_at: Pose2D, neighbours: int = 2, onward: bool = False,
+                   onward_edge: bool = False) -> tuple[list[object], SimBody]:
     """The trip from island 2 west along the corridor; at `stop_at` the scripted builder holds
     its star with island 1 as the hypothesis (the robot's pose in island 1's frame as if it
     stood at the western T). The explorer's requests until it confirms or rejects, and the
-    robot."""
+    robot. onward: the explorer's rehearse_onward; onward_edge: the map has the edge 3 -> 0."""
     body = SimBody(EAST_END)
-    ex = Explorer(ExplorerConfig(rehearse_hypotheses=2, rehearse_neighbours=neighbours))
-    ex.on_graph(_map())
+    ex = Explorer(ExplorerConfig(rehearse_hypotheses=2, rehearse_neighbours=neighbours,
+                                 rehearse_onward=onward))
+    ex.on_graph(_map(onward_edge))
     ex.on_events([BuilderEvent(EventKind.HANDED_BACK, 0.0, EAST_END, 0.1, anchor_odom=EAST_END,
                                accepted_island_id=2)])
     requests: list[object] = []
@@ -204,6 +209,31 @@ def test_one_neighbour_is_not_enough_where_neighbours_have_look_alikes() -> None
     confirms the western T: the false merge two neighbours refuse (office 11's lattice)."""
     requests, _ = _rehearse_from(EAST_T, neighbours=1)
     assert any(isinstance(r, Confirm) and r.island_id == 1 for r in requests)
+
+
+@pytest.mark.slow
+def test_the_last_neighbour_is_looked_for_onward_from_the_first() -> None:
+    """The branch's end found (1 -> 3), its edge to the dead end (3 -> 0) is driven from there
+    and the dead end found: confirmed at the same island as by driving back to the T and
+    along 0 -> 1 backwards, in less simulated time (one edge drive and one dock fewer)."""
+    ends = {}
+    for onward in (True, False):
+        requests, body = _rehearse_from(WEST_T, onward=onward, onward_edge=True)
+        assert any(isinstance(r, Confirm) and r.island_id == 1 for r in requests)
+        p = body.robot.true_pose
+        assert math.hypot(p.x - DEAD_END.x, p.y - DEAD_END.y) < 0.5
+        assert body.robot.collisions == 0
+        ends[onward] = body.robot.time_s
+    assert ends[True] < ends[False] - 20.0
+
+
+@pytest.mark.slow
+def test_onward_at_a_look_alike_still_rejects() -> None:
+    """At the eastern T the branch's end has a look-alike; the edge 3 -> 0 driven on from it
+    ends in plain corridor: no second neighbour, rejected as without onward."""
+    requests, _ = _rehearse_from(EAST_T, onward=True, onward_edge=True)
+    assert any(isinstance(r, Reject) for r in requests)
+    assert not any(isinstance(r, Confirm | Docked) for r in requests)
 
 
 def test_the_rehearsal_drives_the_shortest_edges_not_back_where_it_came_from() -> None:

@@ -412,6 +412,12 @@ class ExplorerConfig:
         metadata={"help": "a rehearsal confirms once this many of the island's neighbours were "
                           "found at the ends of its edges (all of them where it has fewer) [-]"},
     )
+    rehearse_onward: bool = field(
+        default=False,
+        metadata={"help": "the last neighbour a rehearsal needs is looked for beyond the one "
+                          "just found (its shortest edge to another island), not by driving "
+                          "back to the island and along its next edge [-]"},
+    )
     rehearse_max_shift_m: float = field(
         default=1.0,
         metadata={"help": "a rehearsal's look at the neighbour confirms only within this of "

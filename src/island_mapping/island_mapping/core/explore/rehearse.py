@@ -19,6 +19,15 @@ at C again and tries C's next edge (`rehearse_edges`); after the last the robot 
 C's supposed origin, the star's place. In a lattice of corridors a look-alike of C often has
 a look-alike of one neighbour (office 11: two false merges in three runs with one), rarely of
 two.
+
+Onward (`rehearse_onward`, off by default until whole runs say more than two seeds did, see
+docs/exploration.md, session 32): when one more island would confirm and D has an edge to an
+island E other than C, the robot drives it from D (docked there) and looks for E, instead of
+driving back to C, docking there and driving C's next edge: one edge and one dock fewer (a
+confirmed rehearsal took three edge drives of 75-77 s each on paper_fig4, and 390-490 s in
+all). A look-alike of C with a look-alike of D must then have one of E beyond it, as rare as
+one of C's second neighbour. E not found counts as one of the `rehearse_edges` trials: the
+robot drives back to D, then to C, and goes on with C's next edge.
 """
 
 from __future__ import annotations
@@ -123,8 +132,10 @@ def rehearse(d: Drive, graph: TopoGraph, hyp: Hypothesis, odom_then: Pose2D,
     origin_odom = odom_then.compose(hyp.pose.inverse())  # where the hypothesis puts the origin
     trial: Trial | None = None
     trials = trial_edges(graph, hyp.island_id, came_from, cfg.rehearse_edges)
-    need, found = min(cfg.rehearse_neighbours, len(trials)), 0
+    need, found, tried = min(cfg.rehearse_neighbours, len(trials)), 0, 0
     for trial in trials:
+        if tried >= cfg.rehearse_edges:
+            break
         d.deadline_s = d.sense.t_s + d.cfg.max_edge_time_s
         try:
             yield from go_to(d, origin_odom)
@@ -137,9 +148,17 @@ def rehearse(d: Drive, graph: TopoGraph, hyp: Hypothesis, odom_then: Pose2D,
         assert here.origin_odom is not None
         origin_odom = here.origin_odom
         fix = yield from _trial(d, graph, trial, cfg)
+        tried += 1
         if fix is None:
             continue
         found += 1
+        onward = _onward(graph, hyp.island_id, trial) if (
+            cfg.rehearse_onward and found + 1 == need and tried < cfg.rehearse_edges) else None
+        if onward is not None:
+            tried += 1
+            got = yield from _trial(d, graph, onward, cfg)  # not found: driven back to D
+            if got is not None:
+                trial, fix, found = onward, got, need
         if found >= need:
             if on_fix is not None:
                 on_fix(fix)
@@ -150,6 +169,13 @@ def rehearse(d: Drive, graph: TopoGraph, hyp: Hypothesis, odom_then: Pose2D,
         except RouteTimeoutError:
             break
     return Rehearsal(hyp.island_id, trial, None)
+
+
+def _onward(graph: TopoGraph, island_id: int, trial: Trial) -> Trial | None:
+    """The shortest edge from trial's neighbour D to an island other than island_id (the
+    hypothesis' island), or None (module docstring, "Onward")."""
+    ways = trial_edges(graph, trial.neighbour, island_id, k=len(graph))
+    return next((t for t in ways if t.neighbour != island_id), None)
 
 
 def _trial(d: Drive, graph: TopoGraph, trial: Trial, cfg: ExplorerConfig
