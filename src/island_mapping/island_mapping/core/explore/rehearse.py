@@ -14,9 +14,13 @@ edge into C), and a look at D within `rehearse_max_shift_m` of its origin (no se
 hallway: a far basin would confirm a look-alike) where the robot must be found at D in the
 same way. Confirmed once `rehearse_neighbours` neighbours were found (each time the edge is
 driven back and the robot docks at C again before the next; where C has fewer edges, all of
-them): the robot is docked at the last. Not found: the edge is driven back, the robot docks
-at C again and tries C's next edge (`rehearse_edges`); after the last the robot stands near
-C's supposed origin, the star's place. In a lattice of corridors a look-alike of C often has
+them): the robot is docked at the last. Only the first look at C can refute the hypothesis:
+once C and a neighbour were found, a look at C on the way back that does not localize says
+little (paper_fig4 seed 3: a hypothesis 0.02 m off the truth, its neighbour found 0.04 m from
+its origin, was rejected by it), and the next edge starts from C's origin as last docked.
+Not found: the edge is driven back, the robot docks at C again and tries C's next edge
+(`rehearse_edges`); after the last the robot stands near C's supposed origin, the star's
+place. In a lattice of corridors a look-alike of C often has
 a look-alike of one neighbour (office 11: two false merges in three runs with one), rarely of
 two.
 
@@ -143,10 +147,11 @@ def rehearse(d: Drive, graph: TopoGraph, hyp: Hypothesis, odom_then: Pose2D,
                 d, island, d.sense.odom.relative_to(origin_odom), None, cfg.return_max_shift_m)
         except RouteTimeoutError:
             break
-        if not (yield from _found(d, island, here, cfg)):
+        if (yield from _found(d, island, here, cfg)):
+            assert here.origin_odom is not None
+            origin_odom = here.origin_odom
+        elif not found:
             break
-        assert here.origin_odom is not None
-        origin_odom = here.origin_odom
         fix = yield from _trial(d, graph, trial, cfg)
         tried += 1
         if fix is None:
