@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from collections import Counter
 from pathlib import Path
@@ -43,7 +44,8 @@ def record(world: str, seed: int, sim_s: float, out: Path) -> None:
     now: dict[str, Any] = {"star": False}
     ground_truth, recognize, search = (IslandBuilder.on_ground_truth, Recognizer.recognize,
                                        Recognizer._search)  # noqa: SLF001
-    f = out.open("w")
+    part = out.with_name(out.name + ".part")  # renamed onto `out` once the run is complete
+    f = part.open("w")
 
     def ground_truth_(self: IslandBuilder, pose: Pose2D) -> None:
         now["truth"], now["builder"] = pose, self
@@ -76,8 +78,11 @@ def record(world: str, seed: int, sim_s: float, out: Path) -> None:
     IslandBuilder.on_ground_truth = ground_truth_  # type: ignore[method-assign]
     Recognizer.recognize = recognize_  # type: ignore[method-assign]
     Recognizer._search = search_  # type: ignore[method-assign]  # noqa: SLF001
-    explore(argparse.Namespace(world=world, seed=seed, sim_seconds=sim_s))
-    f.close()
+    try:
+        explore(argparse.Namespace(world=world, seed=seed, sim_seconds=sim_s))
+    finally:
+        f.close()
+    os.replace(part, out)
 
 
 def _verdict(found: Pose2D | None, truth: Pose2D) -> str:

@@ -104,21 +104,17 @@ class TopoGraphServerNode(Node):
     # --- changes -------------------------------------------------------------------------------
 
     def _apply(self, item: Any) -> str:
+        """One change, to the store when there is one (it keeps the graph), else the graph."""
+        target = self.store if self.store is not None else self.graph
         if isinstance(item, ExitUpdate):
-            island = (self.store.apply_exit_update(item) if self.store is not None
-                      else self.graph.apply_exit_update(item))
+            island = target.apply_exit_update(item)
             state = next(e for e in island.exits if e.index == item.index).state
             return f"set exit {item.index} of island {item.island} to {state.value}"
         if isinstance(item, NewExit):
-            island = (self.store.add_exit(item) if self.store is not None
-                      else self.graph.add_exit(item))
-            return f"added exit {item.exit.index} to island {island.id}"
+            return f"added exit {item.exit.index} to island {target.add_exit(item).id}"
         if isinstance(item, Island):
-            replaced = (self.store.put_island(item) if self.store is not None
-                        else self.graph.put_island(item))
-            return f"{'replaced' if replaced else 'added'} island {item.id}"
-        replaced = (self.store.put_edge(item) if self.store is not None
-                    else self.graph.put_edge(item))
+            return f"{'replaced' if target.put_island(item) else 'added'} island {item.id}"
+        replaced = target.put_edge(item)
         return f"{'replaced' if replaced else 'added'} edge {item.source}->{item.target}"
 
     @property
