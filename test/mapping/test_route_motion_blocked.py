@@ -8,16 +8,25 @@ import math
 
 import numpy as np
 import pytest
-from island_mapping.core.route import Drive, NavigateConfig, Sense, go_along_hall, look_around
+from island_mapping.core.route import (
+    Drive,
+    NavigateConfig,
+    Sense,
+    go_along_hall,
+    look_around,
+    stalled,
+)
 from island_msgs_py.types import Pose2D
 
 ANGLES = np.linspace(-math.pi, math.pi, 16, endpoint=False)
 
 
-def _run(wall_at_m: float | None, retries: int = 2) -> tuple[int, int, float]:
+def _run(wall_at_m: float | None, retries: int = 2, inferred: bool = False
+         ) -> tuple[int, int, float]:
     """(periods, back-offs, how far it got [m]) of go_along_hall(2 m) on a robot moving
     0.04 m per period forward (0.015 m back), held by a wall ahead at wall_at_m (a contact the
-    sonar missed: a door jamb beside)."""
+    sonar missed: a door jamb beside). inferred: no contact sensor, the robot infers it from its
+    command and odometry's speed (`stalled`, as the explorer node does)."""
     sense = Sense(0.0, Pose2D(0.0, 0.0, 0.0), np.full(16, np.inf), ANGLES)
     motion = go_along_hall(Drive(sense, NavigateConfig(contact_retries=retries)), 2.0)
     periods = backoffs = 0
@@ -31,7 +40,8 @@ def _run(wall_at_m: float | None, retries: int = 2) -> tuple[int, int, float]:
         backing = v < 0
         sense.t_s += 0.1
         sense.odom = Pose2D(x if held else x + step_m, 0.0, 0.0)
-        sense.blocked = held
+        measured_mps = (sense.odom.x - x) / 0.1
+        sense.blocked = stalled(v, measured_mps) if inferred else held
         assert periods < 10_000, "never stopped"
     return periods, backoffs, sense.odom.x
 
@@ -43,6 +53,16 @@ def test_go_along_hall_backs_off_a_contact_then_stops_there() -> None:
     assert backoffs == 2  # contact_retries: backed off and went on twice
     assert got <= 0.4 and periods < 100  # then stopped at the wall, not pushing on
     assert _run(0.4, retries=0)[1] == 0  # no retries: stops at the first contact
+
+
+def test_a_stall_inferred_from_odometry_stops_the_go_as_a_contact_does() -> None:
+    """Without a contact sensor (the explorer node hears only odometry) a forward command that
+    odometry shows did not move the robot counts as the wall's contact: the same back-offs and
+    the same stop; in the open nothing is inferred."""
+    assert _run(0.4, inferred=True) == _run(0.4)
+    assert _run(None, inferred=True) == _run(None)
+    assert not stalled(0.3, 0.25) and not stalled(0.0, 0.0) and not stalled(-0.1, 0.0)
+    assert stalled(0.3, 0.0) and stalled(0.3, -1e-4)
 
 
 # A room (x < 1) whose east wall (0.5 m thick, x = 1.0-1.5) has a 1 m door at -0.5 < y < 0.5,

@@ -57,16 +57,11 @@ from island_mapping import conversions as mcv
 from island_mapping.core.builder import CommandMode
 from island_mapping.core.explore import Explorer, ExplorerConfig
 from island_mapping.core.graph import GraphError, TopoGraph
-from island_mapping.core.route import NavigateConfig, Sense
+from island_mapping.core.route import NavigateConfig, Sense, stalled
 
 NODE_NAME = "explorer_node"
 BASE_FRAME = "base_link"  # the robot frame cmd_vel is in (after frame_prefix)
 SERVICE_POLL_S = 0.1  # how often (wall clock) to look for the services the node waits for
-BLOCKED_CMD_MPS = 0.02
-"""A forward command at least this fast ... [m/s]"""
-BLOCKED_SPEED_MPS = 1e-3
-"""... that left the robot's measured speed (odometry's twist) below this: a wall stopped it
-(the route primitives stop there, as at a bumper's contact) [m/s]."""
 PROGRESS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
 DECISION_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 """The builder's verdicts: every one matters (a scan waits for its own)."""
@@ -235,8 +230,7 @@ class ExplorerNode(Node):
 
     def _step(self, t_ns: int, scan: _Scan, decision: mcv.Decision) -> None:
         self.scans_decided += 1
-        drove_last = self._last_v_mps >= BLOCKED_CMD_MPS
-        blocked = drove_last and abs(scan.v_mps) < BLOCKED_SPEED_MPS
+        blocked = stalled(self._last_v_mps, scan.v_mps)
         self.explorer.on_events(decision.events)
         cmd = self.explorer.step(Sense(t_ns * 1e-9, scan.pose, scan.ranges_m, scan.angles_rad,
                                        scan.w_radps, blocked))

@@ -3,7 +3,8 @@
 Public API:
 - `NavigateConfig`, `NavigateError` (config): route following's parameters;
 - `Sense`, `Drive`, `Command`, `RouteTimeoutError` and the primitives `step`, `rotate_to`,
-  `rotate_by`, `go_to`, `go_along_hall`, `execute_strategy`, `look_around` (motion);
+  `rotate_by`, `go_to`, `go_along_hall`, `execute_strategy`, `look_around`, and `stalled` (a wall
+  stopped the robot, from its command and odometry) (motion);
 - `Fix`, `localize_multi`, `localize_and_dock`, `search_along_axis`, `unconstrained_axis_rad`
   (arrival);
 - `follow_route`, `route_edges`, `RouteObserver`, `TrustedArrivals`, `RouteOutcome`, `RouteEnd`
@@ -41,6 +42,7 @@ from island_mapping.core.route.motion import (
     look_around,
     rotate_by,
     rotate_to,
+    stalled,
     step,
 )
 
@@ -68,6 +70,7 @@ __all__ = [
     "rotate_to",
     "route_edges",
     "search_along_axis",
+    "stalled",
     "step",
     "unconstrained_axis_rad",
 ]

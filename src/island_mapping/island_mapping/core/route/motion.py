@@ -80,6 +80,20 @@ class RouteDeviationError(RouteTimeoutError):
     on): the robot is not where the strategy leads, whatever a localization there says."""
 
 
+# A forward command at least this fast [m/s] ...
+STALL_CMD_MPS = 0.02
+# ... that left the measured forward speed (odometry's twist) below this: a wall stopped the
+# robot, as a bumper's contact would say [m/s].
+STALL_SPEED_MPS = 1e-3
+
+
+def stalled(commanded_v_mps: float, measured_v_mps: float) -> bool:
+    """Was the robot stopped by an obstacle over the last period? A robot without a bumper
+    (the explorer node hears only odometry) infers it: it was commanded forward at least
+    STALL_CMD_MPS [m/s] and odometry measured under STALL_SPEED_MPS [m/s] (either sign)."""
+    return commanded_v_mps >= STALL_CMD_MPS and abs(measured_v_mps) < STALL_SPEED_MPS
+
+
 @dataclass
 class Sense:
     """The robot's newest sensing, updated in place before a motion generator is resumed.
