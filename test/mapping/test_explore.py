@@ -27,7 +27,6 @@ from island_mapping.core.explore import (
     arrival_exit,
     explorer_hooks,
     find_exits,
-    is_builder_request,
     known_space_costs,
     nearest_unexplored,
     route_edges,
@@ -239,7 +238,6 @@ def test_the_builders_requests_take_effect_or_are_refused_by_name() -> None:
         apply_to_builder(managed, Reject())
     with pytest.raises(BuilderError, match="ExitUpdate is a request for the map"):
         apply_to_builder(managed, ExitUpdate(0, 0, ExitState.BLOCKED))
-    assert not is_builder_request(ExitUpdate(0, 0, ExitState.BLOCKED))
     assert managed.state == state and len(managed.islands) == 0
     plain = IslandBuilder(BuilderConfig())
     with pytest.raises(BuilderError, match="not in managed mode"):

@@ -15,8 +15,8 @@ Pure (numpy/scipy/networkx and the other cores; no rclpy, no island_sim). Public
 - `Explorer` (mission: one step per scan); `ExplorerCommand`, `ExplorerState`,
   `ExplorerStatus`, `Docked`, `Handover`, `Abort`, `Confirm`, `Reject` (requests: what it says
   and asks);
-- `apply_to_builder`, `is_builder_request`, `Applied`, `FollowerAction` (the requests as the
-  builder takes them: one dispatch for the builder node and the offline harness);
+- `apply_to_builder`, `Applied`, `FollowerAction` (the requests as the builder takes
+  them: one dispatch for the builder node and the offline harness);
 - `rehearse` (more evidence for a held star: a known island's edge driven to its neighbour);
 - `explorer_hooks`, `arrival_agrees`, `loop_closure_gate`, `loop_closure_hooks` (the builder
   hooks an explorer installs; the loop closure's gate and topological evidence; the loop
@@ -27,7 +27,6 @@ from island_mapping.core.explore.apply import (
     Applied,
     FollowerAction,
     apply_to_builder,
-    is_builder_request,
 )
 from island_mapping.core.explore.config import (
     DoorwayConfig,
@@ -107,7 +106,6 @@ __all__ = [
     "free_lanes",
     "gate",
     "go_clear",
-    "is_builder_request",
     "known_space_costs",
     "loop_closure_gate",
     "loop_closure_hooks",

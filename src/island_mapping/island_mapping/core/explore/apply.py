@@ -28,11 +28,6 @@ class Applied:
     follower: FollowerAction = FollowerAction.KEEP
 
 
-def is_builder_request(r: Request) -> bool:
-    """Is `r` for the builder (else for the map: ExitUpdate, NewExit)?"""
-    return isinstance(r, (Docked, Handover, Abort, Confirm, Reject))
-
-
 def apply_to_builder(builder: IslandBuilder, r: Request) -> Applied:
     """Give the builder one request of the explorer. BuilderError when it cannot take it (an
     unknown island or exit, no decision held, busy) or `r` is a map request; the builder's
@@ -59,4 +54,4 @@ def apply_to_builder(builder: IslandBuilder, r: Request) -> Applied:
     raise BuilderError(f"{type(r).__name__} is a request for the map, not the builder")
 
 
-__all__ = ["Applied", "FollowerAction", "apply_to_builder", "is_builder_request"]
+__all__ = ["Applied", "FollowerAction", "apply_to_builder"]
